@@ -1,0 +1,36 @@
+# navd: the two commands are `make test` and `make demo` (see README).
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: test lint demo bench-accuracy bench-replay clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/ruff check navd drivers hil tests bench
+	$(BIN)/pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check navd drivers hil tests bench
+
+# Until the daemon lands (issue 4), the demo simulates a Claytor Lake mission,
+# replays it through the filter and writes the mission report.
+demo: $(STAMP)
+	$(BIN)/python -m bench.demo
+
+bench-accuracy: $(STAMP)
+	$(BIN)/python -m bench.accuracy --seeds 5 --write BENCHMARKS.md
+
+bench-replay: $(STAMP)
+	$(BIN)/python -m bench.replay_speed --write BENCHMARKS.md
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -1,0 +1,230 @@
+"""Configuration: typed, validated, every key defaulted.
+
+The schema *is* the dataclasses below: each field's type and default is the
+contract, and ``metadata`` carries its allowed range.  :func:`load_config` walks
+them, so an unknown key, a wrong type, a non-finite or out-of-range value is a
+:class:`ConfigError` whose message names the key (``navigation.speed.rpm_per_mps``).
+"""
+
+from __future__ import annotations
+
+import math
+import types
+import typing
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from navd.acoustics import SoundSpeed
+
+__all__ = ["ConfigError", "Config", "load_config", "config_from_dict", "Beacon"]
+
+
+class ConfigError(Exception):
+    """A configuration problem; ``str()`` is one line naming the file and key."""
+
+
+def _rng(lo: float | None = None, hi: float | None = None, gt: float | None = None) -> dict:
+    return {"lo": lo, "hi": hi, "gt": gt}
+
+
+def _num(default: float, **kw: float) -> Any:
+    return field(default=default, metadata=_rng(**kw))
+
+
+@dataclass(frozen=True, slots=True)
+class SpeedConfig:
+    rpm_per_mps: float = _num(910.0, gt=0.0)  # linear RPM-to-surge map from a speed trial
+
+
+@dataclass(frozen=True, slots=True)
+class SoundSpeedConfig:
+    model: Literal["coppens", "mackenzie", "fixed"] = "coppens"
+    temperature_c: float = _num(10.0, lo=-5.0, hi=45.0)
+    salinity_ppt: float = _num(0.2, lo=0.0, hi=50.0)
+    fixed_mps: float = _num(1500.0, lo=1300.0, hi=1700.0)
+    modem_mps: float = _num(1500.0, lo=1300.0, hi=1700.0)
+
+    def model_obj(self) -> SoundSpeed:
+        return SoundSpeed(
+            self.model, self.temperature_c, self.salinity_ppt, self.fixed_mps, self.modem_mps
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class NoiseConfig:
+    range_std_m: float = _num(3.0, gt=0.0)
+    heading_std_deg: float = _num(2.0, gt=0.0)
+    speed_std_mps: float = _num(0.1, gt=0.0)
+    position_init_std_m: float = _num(5.0, gt=0.0)
+    current_init_std_mps: float = _num(0.3, gt=0.0)
+    # default-mode additions (the thesis mode ignores them)
+    heading_bias_init_std_deg: float = _num(5.0, gt=0.0)
+    speed_scale_init_std: float = _num(0.1, gt=0.0)
+    current_walk_mps_per_sqrt_s: float = _num(0.002, lo=0.0)
+    heading_bias_walk_deg_per_sqrt_s: float = _num(0.01, lo=0.0)
+    speed_scale_walk_per_sqrt_s: float = _num(0.0005, lo=0.0)
+    input_corr_s: float = _num(2.0, gt=0.0)  # correlation time of heading/speed errors
+    gps_std_m: float = _num(3.0, gt=0.0)
+    thesis_position_walk_m_per_sqrt_s: float = _num(0.3, lo=0.0)
+    thesis_current_walk_mps_per_sqrt_s: float = _num(0.0, lo=0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class GateConfig:
+    chi2: float = _num(9.0, gt=0.0)  # innovation gate on nu^2 / S (9 = 3 sigma)
+    reacquire_after: int = _num(3, lo=1, hi=100)  # consecutive rejections before re-acquiring
+    max_beacon_speed_mps: float = _num(8.0, gt=0.0)  # faster apparent beacon motion = corrupt
+    max_range_m: float = _num(10000.0, gt=0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class GpsConfig:
+    warmup_s: float = _num(30.0, lo=0.0)  # after re-acquiring at the surface, fixes are poor
+    warmup_std_m: float = _num(15.0, gt=0.0)
+    max_hdop: float = _num(10.0, gt=0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class NavigationConfig:
+    filter: Literal["default", "thesis"] = "default"
+    rate_hz: float = _num(10.0, lo=1.0, hi=100.0)
+    magnetic_declination_deg: float = _num(0.0, lo=-180.0, hi=180.0)
+    surface_depth_m: float = _num(0.3, lo=0.0, hi=20.0)
+    stale_input_s: float = _num(1.0, gt=0.0)
+    speed: SpeedConfig = field(default_factory=SpeedConfig)
+    sound_speed: SoundSpeedConfig = field(default_factory=SoundSpeedConfig)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    gate: GateConfig = field(default_factory=GateConfig)
+    gps: GpsConfig = field(default_factory=GpsConfig)
+
+
+@dataclass(frozen=True, slots=True)
+class Beacon:
+    lat: float | None = _num(None, lo=-90.0, hi=90.0)  # type: ignore[arg-type]
+    lon: float | None = _num(None, lo=-180.0, hi=180.0)  # type: ignore[arg-type]
+    depth: float = _num(0.0, lo=0.0, hi=11000.0)
+    turnaround_s: float = _num(0.0, lo=0.0, hi=10.0)
+
+
+@dataclass(frozen=True, slots=True)
+class SiteConfig:
+    name: str = "unnamed"
+    water_density_kgm3: float = _num(1000.0, lo=990.0, hi=1050.0)
+    surface_pressure_bar: float = _num(1.01325, lo=0.8, hi=1.2)
+    gravity_mps2: float = _num(9.80665, lo=9.7, hi=9.9)
+    surface_altitude_m: float | None = _num(None, lo=-200.0, hi=5000.0)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True, slots=True)
+class Config:
+    navigation: NavigationConfig = field(default_factory=NavigationConfig)
+    beacons: dict[str, Beacon] = field(default_factory=dict)
+    site: SiteConfig = field(default_factory=SiteConfig)
+
+
+def _fail(path: str, msg: str) -> typing.NoReturn:
+    raise ConfigError(f"{path}: {msg}")
+
+
+def _check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        _fail(path, f"expected a number, got {type(value).__name__} {value!r}")
+    if tp is int and not (isinstance(value, int) or float(value).is_integer()):
+        _fail(path, f"expected a whole number, got {value!r}")
+    if not math.isfinite(value):
+        _fail(path, f"must be finite, got {value!r}")
+    lo, hi, gt = meta.get("lo"), meta.get("hi"), meta.get("gt")
+    if lo is not None and value < lo:
+        _fail(path, f"must be >= {lo:g}, got {value!r}")
+    if hi is not None and value > hi:
+        _fail(path, f"must be <= {hi:g}, got {value!r}")
+    if gt is not None and value <= gt:
+        _fail(path, f"must be > {gt:g}, got {value!r}")
+    return int(value) if tp is int else float(value)
+
+
+def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value is None:
+            return None
+        return _convert(value, args[0], meta, path)
+    if origin is Literal:
+        choices = typing.get_args(tp)
+        if value not in choices:
+            _fail(path, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
+        return value
+    if origin is dict:
+        if not isinstance(value, dict):
+            _fail(path, f"expected a mapping, got {type(value).__name__}")
+        _, vt = typing.get_args(tp)
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str) or not k:
+                _fail(path, f"names must be non-empty strings, got {k!r}")
+            out[k] = _convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
+        return out
+    if is_dataclass(tp):
+        return _build(tp, value, path)
+    if tp in (float, int):
+        return _check_number(value, tp, meta, path)
+    if tp is str:
+        if not isinstance(value, str):
+            _fail(path, f"expected a string, got {type(value).__name__} {value!r}")
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            _fail(path, f"expected true or false, got {value!r}")
+        return value
+    raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
+
+
+def _build(cls: type, data: Any, path: str) -> Any:
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        _fail(path or "(top level)", f"expected a mapping, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    known = {f.name: f for f in fields(cls)}
+    for key in data:
+        if key not in known:
+            where = f"{path}.{key}" if path else str(key)
+            _fail(where, "unknown key")
+    kwargs = {}
+    for name, f in known.items():
+        sub = f"{path}.{name}" if path else name
+        if name in data:
+            kwargs[name] = _convert(data[name], hints[name], f.metadata, sub)
+        elif f.default is MISSING and f.default_factory is MISSING:  # pragma: no cover
+            _fail(sub, "missing")
+    return cls(**kwargs)
+
+
+def config_from_dict(data: Any) -> Config:
+    """Validate a parsed YAML document into a :class:`Config`."""
+    return _build(Config, data, "")
+
+
+def load_config(path: str | Path | None) -> Config:
+    """Load and validate a YAML config file; ``None`` gives all defaults."""
+    if path is None:
+        return Config()
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read config ({exc.__class__.__name__}: {exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{p}:{where} invalid YAML") from None
+    try:
+        return config_from_dict(data)
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None

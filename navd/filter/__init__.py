@@ -1,0 +1,5 @@
+"""The navigation filter: pure, deterministic, no I/O and no clock."""
+
+from navd.filter.navigator import Navigator, make_filter
+
+__all__ = ["Navigator", "make_filter"]

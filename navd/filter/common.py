@@ -1,0 +1,109 @@
+"""Types shared by the filter modes, and the step history the RTS smoother runs over."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class RangeMeas:
+    """One acoustic range as it reaches a filter, positions in radians, heights as h - depth."""
+
+    t: float  # arrival of the reply
+    t_ping: float  # departure of the request
+    range_m: float  # one-way range, already corrected to the water's sound speed where wanted
+    beacon: str
+    beacon_lat: float
+    beacon_lon: float
+    beacon_hd: float
+    vehicle_hd: float
+    std_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class RangeDecision:
+    accepted: bool
+    residual_m: float
+    gate_m: float
+    reason: str  # "ok", "gate", or why the range never reached the test
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    lat: float  # radians
+    lon: float
+    current_n: float  # m/s
+    current_e: float
+    var_n: float  # m^2
+    var_e: float
+    cov_ne: float
+
+
+@dataclass(slots=True)
+class Step:
+    """One prediction interval, as the smoother needs it (state vectors are filter-defined)."""
+
+    t: float
+    F: np.ndarray
+    x_pred: object
+    P_pred: np.ndarray
+    x_filt: object
+    P_filt: np.ndarray
+
+
+@dataclass(slots=True)
+class History:
+    steps: list[Step] = field(default_factory=list)
+    enabled: bool = False
+
+    def add(self, t: float, F: np.ndarray, x: object, P: np.ndarray) -> None:
+        if self.enabled:
+            self.steps.append(Step(t, F, x, P, x, P))
+
+    def correct(self, x: object, P: np.ndarray) -> None:
+        """Replace the filtered state of the latest step after an update."""
+        if self.enabled and self.steps:
+            s = self.steps[-1]
+            s.x_filt, s.P_filt = x, P
+
+
+class NavFilter(Protocol):
+    """What the navigator needs of a filter mode."""
+
+    initialised: bool
+    history: History
+
+    def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None: ...
+
+    def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None: ...
+
+    def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None: ...
+
+    def range_update(self, m: RangeMeas) -> RangeDecision: ...
+
+    def estimate(self) -> Estimate: ...
+
+    def state_diff(self, a: object, b: object) -> np.ndarray: ...
+
+    def state_apply(self, x: object, dx: np.ndarray) -> object: ...
+
+    def estimate_of(self, x: object, P: np.ndarray) -> Estimate: ...
+
+
+def joseph_update(
+    P: np.ndarray, H: np.ndarray, r_var: float
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Kalman gain and Joseph-form covariance update for one scalar measurement.
+
+    Returns (K, P_new, S).  The Joseph form keeps P symmetric positive definite
+    under round-off, which the plain (I - KH)P form does not guarantee.
+    """
+    PHt = P @ H
+    S = float(H @ PHt) + r_var
+    K = PHt / S
+    IKH = np.eye(P.shape[0]) - np.outer(K, H)
+    P_new = IKH @ P @ IKH.T + r_var * np.outer(K, K)
+    return K, 0.5 * (P_new + P_new.T), S

@@ -1,0 +1,239 @@
+"""The ``default`` mode: navd's own single-beacon range EKF.
+
+Geodetic nominal state, as in the thesis, with an error state in metres:
+
+    nominal  x = (lat, lon, c_n, c_e, b, s)   radians, m/s, radians, scale
+    error   dx = (dn, de, dc_n, dc_e, db, ds) metres, m/s, radians, scale
+
+* ``c_n, c_e`` water current north/east in m/s (the thesis carried rad/s).
+* ``b`` heading bias added to the declination-corrected compass heading (the
+  Chesapeake runs had an uncalibrated AHRS).
+* ``s`` speed scale on the RPM-derived surge speed (the RPM map comes from a trial).
+
+What it changes from the thesis, and why:
+
+* Range geometry of the round trip: the request left at ``t_ping`` from where the
+  vehicle was then and the reply reached it at ``t``; the predicted range is the mean
+  of the out and back legs, the ping end found by undoing the dead-reckoned motion
+  since ``t_ping`` (recorded per step), with its dependence on the current.
+* Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of a
+  one-sigma radius, and re-acquisition: after ``reacquire_after`` consecutive
+  rejections the position and current covariance is inflated by the size of the
+  residual, so a filter that has drifted (too small a current prior) is never
+  locked out for good.
+* Joseph-form update, symmetrised covariance, positions moved along geodesics.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+
+import numpy as np
+
+from navd import geodesy
+from navd.config import NoiseConfig
+from navd.filter.common import Estimate, History, RangeDecision, RangeMeas, joseph_update
+
+N_STATES = 6
+_TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip geometry
+
+
+class RangeEKF:
+    def __init__(self, noise: NoiseConfig, gate_chi2: float, reacquire_after: int) -> None:
+        self.noise = noise
+        self.gate_chi2 = gate_chi2
+        self.reacquire_after = reacquire_after
+        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+        self.P = np.eye(N_STATES)
+        self.initialised = False
+        self.history = History()
+        self.rejections_in_row = 0
+        self.reacquisitions = 0
+        self.t_last_accept: float | None = None
+        self.t = 0.0
+        # cumulative dead-reckoned displacement (t, north, east, along-track scale) per step
+        self._track_t: deque[float] = deque()
+        self._track_ne: deque[tuple[float, float]] = deque()
+        self._cum_n = 0.0
+        self._cum_e = 0.0
+
+    # -- initialisation and GPS -------------------------------------------------------
+    def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
+        nz = self.noise
+        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0])
+        self.P = np.diag(
+            [
+                std_m**2,
+                std_m**2,
+                nz.current_init_std_mps**2,
+                nz.current_init_std_mps**2,
+                math.radians(nz.heading_bias_init_std_deg) ** 2,
+                nz.speed_scale_init_std**2,
+            ]
+        )
+        self.initialised = True
+        self.t = t
+        self.t_last_accept = t
+        self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
+
+    def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
+        # The fix, seen from the estimate, is the innovation in metres north and east.
+        e, n, _ = geodesy.enu_offset(self.x[0], self.x[1], hd, lat, lon, hd)
+        H = np.zeros((2, N_STATES))
+        H[0, 0] = H[1, 1] = 1.0
+        R = np.eye(2) * std_m**2
+        S = H @ self.P @ H.T + R
+        K = np.linalg.solve(S, H @ self.P).T
+        IKH = np.eye(N_STATES) - K @ H
+        P = IKH @ self.P @ IKH.T + K @ R @ K.T
+        self.P = 0.5 * (P + P.T)
+        self._apply(K @ np.array([n, e]), hd)
+        self.t_last_accept = self.t
+        self.rejections_in_row = 0
+        self.history.correct(self.x.copy(), self.P.copy())
+
+    # -- prediction --------------------------------------------------------------------
+    def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
+        """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""
+        lat, lon, cn, ce, b, s = self.x
+        psi = heading + b
+        u = s * speed
+        cpsi, spsi = math.cos(psi), math.sin(psi)
+        vn = u * cpsi + cn
+        ve = u * spsi + ce
+        dn, de = vn * dt, ve * dt
+        self.x[0], self.x[1] = geodesy.offset_position(lat, lon, dn, de, hd)
+        self._cum_n += dn
+        self._cum_e += de
+        self._track_t.append(t)
+        self._track_ne.append((self._cum_n, self._cum_e))
+        while self._track_t and self._track_t[0] < t - _TRACK_SECONDS:
+            self._track_t.popleft()
+            self._track_ne.popleft()
+
+        F = np.eye(N_STATES)
+        F[0, 2] = dt
+        F[1, 3] = dt
+        F[0, 4] = -u * spsi * dt
+        F[1, 4] = u * cpsi * dt
+        F[0, 5] = speed * cpsi * dt
+        F[1, 5] = speed * spsi * dt
+
+        nz = self.noise
+        # Heading and speed errors are correlated over input_corr_s, so their effect on
+        # position grows like a random walk with that time constant (first-order
+        # Gauss-Markov, short correlation): q = sigma^2 * tau per second.
+        tau = nz.input_corr_s
+        var_along = (nz.speed_std_mps**2) * tau * dt
+        var_cross = (u * math.radians(nz.heading_std_deg)) ** 2 * tau * dt
+        Q = np.zeros((N_STATES, N_STATES))
+        Q[0, 0] = var_along * cpsi * cpsi + var_cross * spsi * spsi
+        Q[1, 1] = var_along * spsi * spsi + var_cross * cpsi * cpsi
+        Q[0, 1] = Q[1, 0] = (var_along - var_cross) * cpsi * spsi
+        Q[2, 2] = Q[3, 3] = nz.current_walk_mps_per_sqrt_s**2 * dt
+        Q[4, 4] = math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
+        Q[5, 5] = nz.speed_scale_walk_per_sqrt_s**2 * dt
+        P = F @ self.P @ F.T + Q
+        self.P = 0.5 * (P + P.T)
+        self.t = t
+        self.history.add(t, F, self.x.copy(), self.P.copy())
+
+    def _displacement_since(self, t0: float) -> tuple[float, float]:
+        """Dead-reckoned north/east displacement from ``t0`` to now."""
+        ts = self._track_t
+        if not ts or t0 >= ts[-1]:
+            return 0.0, 0.0
+        i = bisect.bisect_left(ts, t0)
+        if i == 0:
+            n0, e0 = self._track_ne[0]
+        else:
+            # the step ending at ts[i] covered (ts[i-1], ts[i]]: interpolate inside it
+            ta, tb = ts[i - 1], ts[i]
+            (na, ea), (nb, eb) = self._track_ne[i - 1], self._track_ne[i]
+            w = (t0 - ta) / (tb - ta) if tb > ta else 1.0
+            n0, e0 = na + w * (nb - na), ea + w * (eb - ea)
+        return self._cum_n - n0, self._cum_e - e0
+
+    # -- range update ------------------------------------------------------------------
+    def predicted_range(self, m: RangeMeas) -> tuple[float, np.ndarray]:
+        """Mean of the out and back legs of the round trip, and its Jacobian."""
+        lat, lon = float(self.x[0]), float(self.x[1])
+        dn, de = self._displacement_since(m.t_ping)
+        lat_p, lon_p = geodesy.offset_position(lat, lon, -dn, -de, m.vehicle_hd)
+        r_back, gn_b, ge_b = geodesy.range_and_gradient(
+            lat, lon, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
+        )
+        r_out, gn_o, ge_o = geodesy.range_and_gradient(
+            lat_p, lon_p, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
+        )
+        lag = m.t - m.t_ping
+        H = np.zeros(N_STATES)
+        H[0] = 0.5 * (gn_o + gn_b)
+        H[1] = 0.5 * (ge_o + ge_b)
+        # the ping end lies lag seconds of current drift behind the current estimate
+        H[2] = -0.5 * lag * gn_o
+        H[3] = -0.5 * lag * ge_o
+        return 0.5 * (r_out + r_back), H
+
+    def range_update(self, m: RangeMeas) -> RangeDecision:
+        expected, H = self.predicted_range(m)
+        r_var = m.std_m**2
+        residual = m.range_m - expected
+        S = float(H @ self.P @ H) + r_var
+        gate_m = math.sqrt(self.gate_chi2 * S)
+        if residual * residual > self.gate_chi2 * S:
+            self.rejections_in_row += 1
+            if self.rejections_in_row >= self.reacquire_after:
+                self._reacquire(residual, m.t)
+                return RangeDecision(False, residual, gate_m, "gate_reacquire")
+            return RangeDecision(False, residual, gate_m, "gate")
+        K, self.P, _ = joseph_update(self.P, H, r_var)
+        self._apply(K * residual, m.vehicle_hd)
+        self.rejections_in_row = 0
+        self.t_last_accept = m.t
+        self.history.correct(self.x.copy(), self.P.copy())
+        return RangeDecision(True, residual, gate_m, "ok")
+
+    def _reacquire(self, residual: float, t: float) -> None:
+        # Consecutive rejections mean the estimate, not the ranges, has gone wrong (the
+        # seed's Chesapeake run: current prior too small, every range rejected).  Widen
+        # position by the residual and the current by the drift rate it implies.
+        since = max(30.0, t - (self.t_last_accept if self.t_last_accept is not None else t))
+        self.P[0, 0] += residual**2
+        self.P[1, 1] += residual**2
+        self.P[2, 2] += (residual / since) ** 2
+        self.P[3, 3] += (residual / since) ** 2
+        self.rejections_in_row = 0
+        self.reacquisitions += 1
+        self.history.correct(self.x.copy(), self.P.copy())
+
+    def _apply(self, dx: np.ndarray, hd: float) -> None:
+        self.x = self.state_apply(self.x, dx, hd)
+
+    # -- outputs and smoother hooks ----------------------------------------------------
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> Estimate:
+        return Estimate(
+            float(x[0]),
+            float(x[1]),
+            float(x[2]),
+            float(x[3]),
+            float(P[0, 0]),
+            float(P[1, 1]),
+            float(P[0, 1]),
+        )
+
+    def estimate(self) -> Estimate:
+        return self.estimate_of(self.x, self.P)
+
+    def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        e, n, _ = geodesy.enu_offset(b[0], b[1], 0.0, a[0], a[1], 0.0)
+        d = a - b
+        d[0], d[1] = n, e
+        return d
+
+    def state_apply(self, x: np.ndarray, dx: np.ndarray, hd: float = 0.0) -> np.ndarray:
+        y = x + dx
+        y[0], y[1] = geodesy.offset_position(float(x[0]), float(x[1]), dx[0], dx[1], hd)
+        return y

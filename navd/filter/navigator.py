@@ -1,0 +1,346 @@
+"""The navigator: records in time order in, estimates at the filter rate out.
+
+It is pure: no clock, no I/O.  The daemon feeds it records stamped with their
+arrival time, ``navd replay`` feeds it a log; both get the same outputs for the
+same records.  Inputs (heading, RPM, depth) are held from their last sample
+(zero-order hold) and the filter is propagated to the exact time of every record
+and every tick, so when a record falls between ticks does not change the answer.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from typing import Any
+
+from navd import geodesy
+from navd.acoustics import rescale_range, travel_time_to_range
+from navd.config import Config
+from navd.filter.beacons import BeaconResolver
+from navd.filter.common import NavFilter, RangeDecision, RangeMeas
+from navd.filter.deadreckoning import DeadReckoner
+from navd.filter.ekf import RangeEKF
+from navd.filter.smoother import rts_smooth
+from navd.filter.thesis import ThesisEKF
+from navd.records import (
+    Attitude,
+    Depth,
+    Gps,
+    Heading,
+    Pressure,
+    Range,
+    Record,
+    Rpm,
+    TravelTime,
+    Velocity,
+)
+
+_GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
+_GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
+
+
+def make_filter(cfg: Config) -> NavFilter:
+    nav = cfg.navigation
+    nz = nav.noise
+    if nav.filter == "thesis":
+        return ThesisEKF(
+            nz.position_init_std_m,
+            nz.current_init_std_mps,
+            nz.thesis_position_walk_m_per_sqrt_s,
+            nz.thesis_current_walk_mps_per_sqrt_s,
+        )
+    return RangeEKF(nz, nav.gate.chi2, nav.gate.reacquire_after)
+
+
+class Navigator:
+    def __init__(self, cfg: Config, keep_history: bool = False) -> None:
+        nav = cfg.navigation
+        self.cfg = cfg
+        self.nav = nav
+        self.thesis = nav.filter == "thesis"
+        self.filter: NavFilter = make_filter(cfg)
+        self.filter.history.enabled = keep_history
+        self.dr = DeadReckoner()
+        self.beacons = BeaconResolver(cfg.beacons, nav.gate)
+        self.sound = nav.sound_speed.model_obj()
+        self.decl = math.radians(nav.magnetic_declination_deg)
+        self.tick_dt = 1.0 / nav.rate_hz
+        self.counters: Counter[str] = Counter()
+        self.warnings: list[str] = list(self.sound.warnings())
+
+        self._tick_k: int | None = None
+        self._t_filter: float | None = None
+        self._heading_deg: float | None = None
+        self._t_heading = -math.inf
+        self._rpm: float | None = None
+        self._t_rpm = -math.inf
+        self._depth = 0.0
+        self._alt_sum = 0.0
+        self._alt_n = 0
+        self._t_gps: float | None = None
+        self._t_gps_streak = -math.inf
+        self._tick_steps: list[tuple[int, dict[str, Any]]] = []
+
+    # -- public ------------------------------------------------------------------------
+    def feed(self, rec: Record) -> list[dict[str, Any]]:
+        """Consume one record; return the outputs (ticks before it, its decision)."""
+        t = rec.t
+        if not math.isfinite(t):
+            self.counters["skipped_non_finite_time"] += 1
+            return []
+        if self._t_filter is not None and t < self._t_filter:
+            self.counters["skipped_out_of_order"] += 1
+            return []
+        out = self._ticks_until(t, inclusive=False)
+        self._propagate_to(t)
+        handler = _HANDLERS.get(type(rec))
+        if handler is None:  # pragma: no cover - every record type has a handler
+            self.counters["skipped_unknown_record"] += 1
+            return out
+        decision = handler(self, rec)
+        if decision is not None:
+            out.append(decision)
+        return out
+
+    def advance(self, t: float) -> list[dict[str, Any]]:
+        """Run the ticks up to and including ``t`` (the daemon's clock, or the end of a log)."""
+        return self._ticks_until(t, inclusive=True)
+
+    def smoothed(self) -> list[dict[str, Any]]:
+        """Estimates re-written by the Rauch-Tung-Striebel smoother over the whole history."""
+        steps = self.filter.history.steps
+        if not steps:
+            return []
+        xs, Ps = rts_smooth(steps, self.filter.state_diff, self.filter.state_apply)
+        out = []
+        for idx, rec in self._tick_steps:
+            est = self.filter.estimate_of(xs[idx], Ps[idx])
+            r = dict(rec)
+            self._fill(r, est)
+            r["smoothed"] = True
+            out.append(r)
+        return out
+
+    @property
+    def surface_altitude(self) -> float:
+        if self.cfg.site.surface_altitude_m is not None:
+            return self.cfg.site.surface_altitude_m
+        return self._alt_sum / self._alt_n if self._alt_n else 0.0
+
+    # -- time --------------------------------------------------------------------------
+    def _ticks_until(self, t: float, inclusive: bool) -> list[dict[str, Any]]:
+        if self._tick_k is None:
+            self._tick_k = math.ceil(t / self.tick_dt - 1e-9)
+        out = []
+        while True:
+            tk = self._tick_k * self.tick_dt
+            if tk > t or (tk == t and not inclusive):
+                break
+            self._propagate_to(tk)
+            est = self._estimate_record(tk)
+            if est is not None:
+                out.append(est)
+            self._tick_k += 1
+        return out
+
+    def _speed_heading(self, t: float) -> tuple[float, float]:
+        if self._heading_deg is None:
+            return 0.0, 0.0  # no compass yet: hold position rather than guess a direction
+        speed = (self._rpm or 0.0) / self.nav.speed.rpm_per_mps
+        return math.radians(self._heading_deg) + self.decl, speed
+
+    def _propagate_to(self, t: float) -> None:
+        if self._t_filter is None or not self.filter.initialised:
+            self._t_filter = t
+            return
+        remaining = t - self._t_filter
+        if remaining <= 0.0:
+            return
+        heading, speed = self._speed_heading(t)
+        hd = self.surface_altitude - self._depth
+        # Long gaps (a log with a hole) are crossed in steps of one tick.
+        n = max(1, math.ceil(remaining / self.tick_dt - 1e-9))
+        step = remaining / n
+        for i in range(1, n + 1):
+            self.filter.predict(self._t_filter + i * step, step, heading, speed, hd)
+            self.dr.step(step, heading, speed, hd)
+        self._t_filter = t
+
+    # -- inputs ------------------------------------------------------------------------
+    def _on_heading(self, rec: Heading) -> None:
+        self._heading_deg, self._t_heading = rec.deg, rec.t
+
+    def _on_attitude(self, rec: Attitude) -> None:
+        self._heading_deg, self._t_heading = rec.yaw_deg, rec.t
+
+    def _on_rpm(self, rec: Rpm) -> None:
+        self._rpm, self._t_rpm = rec.rpm, rec.t
+
+    def _on_depth(self, rec: Depth) -> None:
+        self._depth = rec.m
+
+    def _on_pressure(self, rec: Pressure) -> None:
+        site = self.cfg.site
+        self._depth = (rec.bar - site.surface_pressure_bar) * 1e5 / (
+            site.water_density_kgm3 * site.gravity_mps2
+        )
+
+    def _on_velocity(self, rec: Velocity) -> None:
+        self.counters["velocity_unused"] += 1  # DVL fusion is not part of the range filter
+
+    def _at_surface(self) -> bool:
+        return self._depth < self.nav.surface_depth_m
+
+    def _gps_fresh(self, t: float) -> bool:
+        return self._t_gps is not None and t - self._t_gps <= _GPS_FRESH_S
+
+    def _on_gps(self, rec: Gps) -> None:
+        if rec.fix == 0 or rec.lat is None or rec.lon is None:
+            self.counters["gps_no_fix"] += 1
+            return
+        if rec.hdop is not None and rec.hdop > self.nav.gps.max_hdop:
+            self.counters["gps_poor_hdop"] += 1
+            return
+        if not self._at_surface():
+            self.counters["gps_while_submerged"] += 1
+            return
+        if self._t_gps is None or rec.t - self._t_gps > _GPS_NEW_STREAK_S:
+            self._t_gps_streak = rec.t
+        self._t_gps = rec.t
+        if rec.alt is not None:
+            self._alt_sum += rec.alt
+            self._alt_n += 1
+        warm = rec.t - self._t_gps_streak < self.nav.gps.warmup_s
+        std = self.nav.gps.warmup_std_m if warm else self.nav.noise.gps_std_m
+        lat, lon = math.radians(rec.lat), math.radians(rec.lon)
+        hd = self.surface_altitude - self._depth
+        if not self.filter.initialised:
+            self.filter.initialise(lat, lon, std, rec.t)
+            self._t_filter = rec.t
+        else:
+            self.filter.gps_update(lat, lon, std, hd)
+        self.dr.reset(lat, lon)
+        self.counters["gps_fused"] += 1
+
+    def _on_range(self, rec: Range | TravelTime) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "type": "range",
+            "t": rec.t,
+            "t_ping": rec.t_ping,
+            "beacon": rec.beacon,
+        }
+
+        def refuse(reason: str) -> dict[str, Any]:
+            self.counters[f"range_{reason}"] += 1
+            self.counters["ranges_rejected"] += 1
+            out.update(accepted=False, residual_m=None, gate_m=None, reason=reason)
+            return out
+
+        if not self.filter.initialised:
+            return refuse("not_initialised")
+        if self.thesis and self._gps_fresh(rec.t):
+            return refuse("gps_available")  # Algorithm 2 ranges only when GPS is not
+        fix, why = self.beacons.resolve(
+            rec.t, rec.beacon, rec.beacon_lat, rec.beacon_lon, rec.beacon_depth
+        )
+        if fix is None:
+            return refuse(why)
+        out["beacon_lat"] = math.degrees(fix.lat)
+        out["beacon_lon"] = math.degrees(fix.lon)
+        out["beacon_depth"] = fix.depth
+        c_water = self.sound.at(0.5 * (self._depth + fix.depth))
+        if isinstance(rec, TravelTime):
+            rng = travel_time_to_range(rec.twtt_s, c_water, fix.turnaround_s)
+        elif self.thesis:
+            rng = rec.m  # the thesis uses the modem's range as reported
+        else:
+            rng = rescale_range(rec.m, self.sound.modem_mps, c_water)
+        out["range_m"] = rng
+        if not 0.0 < rng <= self.nav.gate.max_range_m:
+            return refuse("range_out_of_bounds")
+        h = self.surface_altitude
+        meas = RangeMeas(
+            t=rec.t,
+            t_ping=rec.t_ping,
+            range_m=rng,
+            beacon=rec.beacon,
+            beacon_lat=fix.lat,
+            beacon_lon=fix.lon,
+            beacon_hd=h - fix.depth,
+            vehicle_hd=h - self._depth,
+            std_m=self.nav.noise.range_std_m,
+        )
+        d: RangeDecision = self.filter.range_update(meas)
+        self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
+        if not d.accepted:
+            self.counters[f"range_{d.reason}"] += 1
+        out.update(accepted=d.accepted, residual_m=d.residual_m, gate_m=d.gate_m, reason=d.reason)
+        return out
+
+    # -- outputs -----------------------------------------------------------------------
+    def mode(self, t: float) -> str:
+        if not self._at_surface():
+            return "submerged"
+        if self._gps_fresh(t) and t - self._t_gps_streak >= self.nav.gps.warmup_s:
+            return "surface"
+        return "surfacing"
+
+    def _fill(self, r: dict[str, Any], est: Any) -> None:
+        r["lat"] = math.degrees(est.lat)
+        r["lon"] = math.degrees(est.lon)
+        r["current_n"] = est.current_n
+        r["current_e"] = est.current_e
+        r["std_n"] = math.sqrt(max(0.0, est.var_n))
+        r["std_e"] = math.sqrt(max(0.0, est.var_e))
+        r["cov_ne"] = est.cov_ne
+
+    def _estimate_record(self, t: float) -> dict[str, Any] | None:
+        if not self.filter.initialised:
+            return None
+        est = self.filter.estimate()
+        heading, speed = self._speed_heading(t)
+        r: dict[str, Any] = {"type": "estimate", "t": round(t, 9)}
+        self._fill(r, est)
+        r["depth"] = self._depth
+        r["mode"] = self.mode(t)
+        x = getattr(self.filter, "x", None)
+        if not self.thesis and x is not None:
+            r["heading_bias_deg"] = math.degrees(float(x[4]))
+            r["speed_scale"] = float(x[5])
+            heading += float(x[4])
+            speed *= float(x[5])
+        r["heading_deg"] = math.degrees(geodesy.wrap_lon(heading)) % 360.0
+        r["speed_mps"] = speed
+        if self.dr.lat is not None and self.dr.lon is not None:
+            r["dr_lat"] = math.degrees(self.dr.lat)
+            r["dr_lon"] = math.degrees(self.dr.lon)
+        stale = []
+        if t - self._t_heading > self.nav.stale_input_s:
+            stale.append("heading")
+        if t - self._t_rpm > self.nav.stale_input_s:
+            stale.append("rpm")
+        if stale:
+            r["stale"] = stale
+            self.counters["ticks_with_stale_input"] += 1
+        if not all(math.isfinite(v) for v in r.values() if isinstance(v, float)):
+            # Never publish a NaN: say so and skip the tick.
+            self.counters["estimates_not_finite"] += 1
+            return None
+        if self.filter.history.enabled:
+            self._tick_steps.append((len(self.filter.history.steps) - 1, r))
+        return r
+
+
+_HANDLERS: dict[type, Any] = {
+    Heading: Navigator._on_heading,
+    Attitude: Navigator._on_attitude,
+    Rpm: Navigator._on_rpm,
+    Depth: Navigator._on_depth,
+    Pressure: Navigator._on_pressure,
+    Gps: Navigator._on_gps,
+    Range: Navigator._on_range,
+    TravelTime: Navigator._on_range,
+    Velocity: Navigator._on_velocity,
+}
+
+__all__ = ["Navigator", "make_filter"]

@@ -1,0 +1,237 @@
+"""Measurement log, version 1: reader and writer (``shared/spec/replay-interface.md``).
+
+JSON Lines; a header line, then one record per line.  The reader never raises on
+bad content: each malformed line is skipped and reported as a :class:`Skipped`
+with its line number and reason, unless ``strict`` asks for the first one to be
+fatal (:class:`LogError`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import IO, Any
+
+from navd.records import (
+    TYPE_NAMES,
+    Attitude,
+    Depth,
+    Gps,
+    Heading,
+    Pressure,
+    Range,
+    Record,
+    Rpm,
+    TravelTime,
+    Velocity,
+)
+
+FORMAT = "navd-measurements"
+VERSION = 1
+
+__all__ = ["LogError", "Skipped", "MeasurementLog", "read_measurement_log", "MeasurementWriter"]
+
+
+class LogError(Exception):
+    """A log that cannot be read at all, or the first bad line under ``strict``; one line."""
+
+
+@dataclass(frozen=True, slots=True)
+class Skipped:
+    line: int
+    reason: str
+
+
+@dataclass(slots=True)
+class MeasurementLog:
+    header: dict[str, Any]
+    records: list[Record]
+    skipped: list[Skipped]
+
+
+class _Bad(Exception):
+    pass
+
+
+def _num(obj: dict, key: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    if key not in obj:
+        raise _Bad(f"missing field '{key}'")
+    v = obj[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise _Bad(f"field '{key}' must be a number, got {type(v).__name__}")
+    if not math.isfinite(v):
+        raise _Bad(f"field '{key}' is not finite")
+    if not lo <= v <= hi:
+        raise _Bad(f"field '{key}'={v!r} outside [{lo:g}, {hi:g}]")
+    return float(v)
+
+
+def _opt(obj: dict, key: str, lo: float = -math.inf, hi: float = math.inf) -> float | None:
+    if obj.get(key) is None:
+        return None
+    return _num(obj, key, lo, hi)
+
+
+def _str(obj: dict, key: str) -> str:
+    v = obj.get(key)
+    if not isinstance(v, str) or not v:
+        raise _Bad(f"field '{key}' must be a non-empty string")
+    return v
+
+
+def _beacon_fields(obj: dict) -> tuple[float | None, float | None, float | None]:
+    return (
+        _opt(obj, "beacon_lat", -90.0, 90.0),
+        _opt(obj, "beacon_lon", -180.0, 180.0),
+        _opt(obj, "beacon_depth", -100.0, 11000.0),
+    )
+
+
+def _ping_time(obj: dict, t: float) -> float:
+    tp = _num(obj, "t_ping")
+    if tp > t:
+        raise _Bad("t_ping is after t")
+    return tp
+
+
+def _parse_gps(o: dict, t: float) -> Gps:
+    fix = o.get("fix")
+    if isinstance(fix, bool) or not isinstance(fix, int) or fix not in (0, 1, 2):
+        raise _Bad("field 'fix' must be 0, 1 or 2")
+    hdop = _opt(o, "hdop", 0.0, 1000.0)
+    if fix == 0:
+        return Gps(t, None, None, None, 0, hdop)
+    return Gps(
+        t,
+        _num(o, "lat", -90.0, 90.0),
+        _num(o, "lon", -180.0, 180.0),
+        _opt(o, "alt", -1000.0, 10000.0),
+        fix,
+        hdop,
+    )
+
+
+def _parse_range(o: dict, t: float) -> Range:
+    return Range(t, _ping_time(o, t), _num(o, "m", 0.0, 1e6), _str(o, "beacon"), *_beacon_fields(o))
+
+
+def _parse_tt(o: dict, t: float) -> TravelTime:
+    return TravelTime(
+        t, _ping_time(o, t), _num(o, "twtt_s", 0.0, 1e3), _str(o, "beacon"), *_beacon_fields(o)
+    )
+
+
+_PARSERS = {
+    "heading": lambda o, t: Heading(t, _num(o, "deg")),
+    "attitude": lambda o, t: Attitude(
+        t, _num(o, "roll_deg"), _num(o, "pitch_deg"), _num(o, "yaw_deg")
+    ),
+    "rpm": lambda o, t: Rpm(t, _num(o, "rpm")),
+    "depth": lambda o, t: Depth(t, _num(o, "m", -100.0, 11000.0)),
+    "pressure": lambda o, t: Pressure(t, _num(o, "bar", 0.0, 2000.0)),
+    "gps": _parse_gps,
+    "range": _parse_range,
+    "travel_time": _parse_tt,
+    "velocity": lambda o, t: Velocity(t, _num(o, "u"), _num(o, "v"), _num(o, "w")),
+}
+
+
+def parse_record(obj: Any) -> Record:
+    """One decoded JSON object to a record; raises ``ValueError`` with the reason."""
+    try:
+        if not isinstance(obj, dict):
+            raise _Bad("not a JSON object")
+        kind = obj.get("type")
+        parser = _PARSERS.get(kind) if isinstance(kind, str) else None
+        if parser is None:
+            raise _Bad(f"unknown record type {kind!r}")
+        return parser(obj, _num(obj, "t"))
+    except _Bad as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _check_header(obj: Any) -> dict[str, Any]:
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise LogError(f"line 1: not a measurement log header (expected format '{FORMAT}')")
+    if obj.get("version") != VERSION:
+        raise LogError(f"line 1: unsupported version {obj.get('version')!r} (reader knows {VERSION})")
+    return obj
+
+
+def iter_lines(lines: Iterable[str], strict: bool = False) -> Iterator[tuple[int, Record | Skipped]]:
+    """Records (or skips) from the lines after the header, numbered from 2."""
+    last_t = -math.inf
+    for no, raw in enumerate(lines, start=2):
+        line = raw.strip()
+        if not line:
+            continue
+        try:
+            try:
+                obj = json.loads(line)
+            except (json.JSONDecodeError, RecursionError) as exc:
+                raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
+            rec = parse_record(obj)
+            if rec.t < last_t:
+                raise ValueError(f"t={rec.t:g} goes back in time (previous {last_t:g})")
+        except ValueError as exc:
+            if strict:
+                raise LogError(f"line {no}: {exc}") from None
+            yield no, Skipped(no, str(exc))
+            continue
+        last_t = rec.t
+        yield no, rec
+
+
+def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementLog:
+    p = Path(path)
+    try:
+        fh = p.open("r", encoding="utf-8", errors="strict")
+    except OSError as exc:
+        raise LogError(f"{p}: cannot open ({exc.strerror or exc})") from None
+    try:
+        with fh:
+            first = fh.readline()
+            if not first:
+                raise LogError(f"{p}: empty file, expected a measurement log header")
+            try:
+                header = _check_header(json.loads(first))
+            except json.JSONDecodeError:
+                raise LogError(f"{p}: line 1: header is not valid JSON") from None
+            records: list[Record] = []
+            skipped: list[Skipped] = []
+            for _, item in iter_lines(fh, strict):
+                if isinstance(item, Skipped):
+                    skipped.append(item)
+                else:
+                    records.append(item)
+    except UnicodeDecodeError as exc:
+        raise LogError(f"{p}: not UTF-8 text ({exc.reason})") from None
+    except LogError as exc:
+        msg = str(exc)
+        raise LogError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
+    return MeasurementLog(header, records, skipped)
+
+
+def record_to_json(rec: Record) -> dict[str, Any]:
+    out: dict[str, Any] = {"type": TYPE_NAMES[type(rec)]}
+    for f in fields(rec):
+        v = getattr(rec, f.name)
+        if v is None:
+            continue
+        out[f.name] = v
+    return out
+
+
+class MeasurementWriter:
+    """Writes a measurement log v1 to an open text stream."""
+
+    def __init__(self, fh: IO[str], start_utc: str, **extra: Any) -> None:
+        self._fh = fh
+        header = {"format": FORMAT, "version": VERSION, "start_utc": start_utc, **extra}
+        fh.write(json.dumps(header) + "\n")
+
+    def write(self, rec: Record) -> None:
+        self._fh.write(json.dumps(record_to_json(rec), separators=(",", ":")) + "\n")
