@@ -19,7 +19,7 @@ import yaml
 
 from navd.acoustics import SoundSpeed
 
-__all__ = ["ConfigError", "Config", "load_config", "config_from_dict", "Beacon"]
+__all__ = ["ConfigError", "Config", "load_config", "config_from_dict", "Beacon", "build"]
 
 
 class ConfigError(Exception):
@@ -158,6 +158,11 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
         if value not in choices:
             _fail(path, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
         return value
+    if origin is list:
+        if not isinstance(value, list):
+            _fail(path, f"expected a list, got {type(value).__name__}")
+        (it,) = typing.get_args(tp)
+        return [_convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
     if origin is dict:
         if not isinstance(value, dict):
             _fail(path, f"expected a mapping, got {type(value).__name__}")
@@ -202,6 +207,11 @@ def _build(cls: type, data: Any, path: str) -> Any:
         elif f.default is MISSING and f.default_factory is MISSING:  # pragma: no cover
             _fail(sub, "missing")
     return cls(**kwargs)
+
+
+def build(cls: type, data: Any, path: str = "") -> Any:
+    """Validate a mapping into the dataclass ``cls`` (used for scenario files too)."""
+    return _build(cls, data, path)
 
 
 def config_from_dict(data: Any) -> Config:

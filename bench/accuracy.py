@@ -1,0 +1,145 @@
+"""``make bench-accuracy``: every scenario, several seeds, both filter modes and dead reckoning.
+
+Each mission is simulated, written to disk and run through the ``navd replay``
+command line (the public path users take), then scored against the truth.  The
+table goes into BENCHMARKS.md between markers, with the command that made it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from hil.scenario import list_scenarios, load_scenario
+from hil.score import Score, read_jsonl, score
+from hil.sim_cli import write_mission
+from hil.world import simulate
+
+BEGIN = "<!-- bench-accuracy:begin -->"
+END = "<!-- bench-accuracy:end -->"
+
+
+def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
+    cfg = mission_dir / f"config-{mode}.yaml"
+    if not cfg.exists():
+        text = (mission_dir / "config.yaml").read_text()
+        # the crew config with the filter mode set; navigation is always present
+        cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+    out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
+    cmd = [sys.executable, "-m", "navd.cli", "replay", str(mission_dir / "measurements.jsonl"),
+           "--config", str(cfg), "--out", str(out)]
+    if smooth:
+        cmd.append("--smooth")
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    return read_jsonl(out)
+
+
+def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[Score]]:
+    sc = load_scenario(name)
+    res: dict[str, list[Score]] = {"default": [], "smoothed": [], "thesis": []}
+    for seed in seeds:
+        d = workdir / f"{name}-{seed}"
+        write_mission(simulate(sc, seed), d)
+        truth = read_jsonl(d / "truth.jsonl")
+        res["default"].append(score(replay(d, "default"), truth))
+        res["smoothed"].append(score(replay(d, "default", smooth=True), truth))
+        res["thesis"].append(score(replay(d, "thesis"), truth))
+    return res
+
+
+def _m(xs: list[float]) -> float:
+    xs = [x for x in xs if not math.isnan(x)]
+    return statistics.fmean(xs) if xs else math.nan
+
+
+def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
+    lines = [
+        f"Mean over seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds). Errors in metres over the "
+        "submerged part; *surf* = error of the last submerged estimate; *in95* = fraction of "
+        "submerged time the truth lies inside the filter's 95 % ellipse; *cur* = RMS current "
+        "error (m/s); *acc/rej* = ranges accepted/rejected per mission; *reacq* = re-acquisitions.",
+        "",
+        "| scenario | DR rms | DR surf | thesis rms | thesis surf | thesis acc/rej | default rms "
+        "| default p95 | default surf | in95 | cur | acc/rej | reacq | smoothed rms |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    tot = {"dr": [], "thesis": [], "default": [], "smoothed": [], "in95": []}
+    for name, r in results.items():
+        d, t, s = r["default"], r["thesis"], r["smoothed"]
+        row = {
+            "dr": _m([x.dr_rms_m for x in d]),
+            "thesis": _m([x.rms_m for x in t]),
+            "default": _m([x.rms_m for x in d]),
+            "smoothed": _m([x.rms_m for x in s]),
+            "in95": _m([x.inside95 for x in d]),
+        }
+        for k, v in row.items():
+            tot[k].append(v)
+        lines.append(
+            f"| {name} | {row['dr']:.1f} | {_m([x.dr_surfacing_m for x in d]):.1f} "
+            f"| {row['thesis']:.1f} | {_m([x.surfacing_m for x in t]):.1f} "
+            f"| {_m([x.accepted for x in t]):.1f}/{_m([x.rejected for x in t]):.1f} "
+            f"| {row['default']:.1f} | {_m([x.p95_m for x in d]):.1f} "
+            f"| {_m([x.surfacing_m for x in d]):.1f} | {row['in95']:.2f} "
+            f"| {_m([x.current_rms_mps for x in d]):.3f} "
+            f"| {_m([x.accepted for x in d]):.1f}/{_m([x.rejected for x in d]):.1f} "
+            f"| {_m([x.reacquisitions for x in d]):.1f} | {row['smoothed']:.1f} |"
+        )
+    lines.append(
+        f"| **suite mean** | {_m(tot['dr']):.1f} | | {_m(tot['thesis']):.1f} | | | "
+        f"{_m(tot['default']):.1f} | | | {_m(tot['in95']):.2f} | | | | {_m(tot['smoothed']):.1f} |"
+    )
+    ratio = _m(tot["default"]) / _m(tot["thesis"])
+    worse_than_thesis = [n for n, a, b in zip(results, tot["default"], tot["thesis"], strict=True) if a > b]
+    worse_than_dr = [n for n, a, b in zip(results, tot["default"], tot["dr"], strict=True) if a > 1.1 * b]
+    lines += [
+        "",
+        f"- default / thesis mean RMS: **{ratio:.2f}** (target <= 0.5)",
+        f"- scenarios where default is worse than thesis: {', '.join(worse_than_thesis) or 'none'}",
+        f"- scenarios where default is >10 % worse than dead reckoning: {', '.join(worse_than_dr) or 'none'}",
+        f"- truth inside the 95 % ellipse, suite mean: {_m(tot['in95']):.2f} (target >= 0.90)",
+        f"- smoothed below filtered on {sum(s < f for s, f in zip(tot['smoothed'], tot['default'], strict=True))}"
+        f"/{len(tot['default'])} scenarios",
+    ]
+    return "\n".join(lines)
+
+
+def write_section(path: Path, body: str) -> None:
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    section = f"{BEGIN}\n{body}\n{END}"
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        text = head + section + rest.split(END, 1)[1]
+    else:
+        text = text.rstrip() + "\n\n## Accuracy (`make bench-accuracy`)\n\n" + section + "\n"
+    path.write_text(text)
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seeds", type=int, default=5)
+    p.add_argument("--scenarios", nargs="*", help="default: every scenario marked bench: true")
+    p.add_argument("--write", help="BENCHMARKS.md to update")
+    args = p.parse_args()
+    names = args.scenarios or [n for n in list_scenarios() if load_scenario(n).bench]
+    seeds = list(range(1, args.seeds + 1))
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            results[name] = run_scenario(name, seeds, Path(tmp))
+            print(f"{name}: default {_m([s.rms_m for s in results[name]['default']]):.1f} m, "
+                  f"thesis {_m([s.rms_m for s in results[name]['thesis']]):.1f} m", file=sys.stderr)
+    body = table(results, seeds)
+    print(body)
+    if args.write:
+        write_section(Path(args.write), body)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

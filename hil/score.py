@@ -1,0 +1,90 @@
+"""Scoring a replayed mission against the simulator's truth.
+
+Errors are measured with GeographicLib's inverse geodesic (independent of navd's
+geodesy).  Only the submerged part of the mission is scored: at the surface every
+mode is pinned to GPS.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from geographiclib.geodesic import Geodesic
+
+_GEOD = Geodesic.WGS84
+CHI2_2DOF_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
+_SUBMERGED_DEPTH_M = 0.3
+
+
+@dataclass(frozen=True, slots=True)
+class Score:
+    rms_m: float
+    p95_m: float
+    surfacing_m: float  # error of the last submerged estimate
+    inside95: float  # fraction of submerged time the truth lies in the 95 % ellipse
+    current_rms_mps: float
+    dr_rms_m: float
+    dr_surfacing_m: float
+    accepted: int
+    rejected: int
+    reacquisitions: int
+
+
+def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
+    with open(path, encoding="utf-8") as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def _ne_error(lat: float, lon: float, lat_t: float, lon_t: float) -> tuple[float, float]:
+    g = _GEOD.Inverse(lat_t, lon_t, lat, lon)
+    az = math.radians(g["azi1"])
+    return g["s12"] * math.cos(az), g["s12"] * math.sin(az)
+
+
+def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
+    by_t = {round(s["t"], 3): s for s in truth}
+    errs, dr_errs, cur_errs, inside = [], [], [], []
+    last_sub: tuple[float, float] | None = None
+    for o in outputs:
+        if o.get("type") != "estimate":
+            continue
+        tr = by_t.get(round(o["t"], 3))
+        if tr is None or tr["depth"] < _SUBMERGED_DEPTH_M:
+            continue
+        dn, de = _ne_error(o["lat"], o["lon"], tr["lat"], tr["lon"])
+        e = math.hypot(dn, de)
+        errs.append(e)
+        cov = np.array([[o["std_n"] ** 2, o["cov_ne"]], [o["cov_ne"], o["std_e"] ** 2]])
+        try:
+            d2 = float(np.array([dn, de]) @ np.linalg.solve(cov, np.array([dn, de])))
+        except np.linalg.LinAlgError:
+            d2 = math.inf
+        inside.append(d2 <= CHI2_2DOF_95)
+        cur_errs.append(math.hypot(o["current_n"] - tr["current_n"], o["current_e"] - tr["current_e"]))
+        dre = None
+        if "dr_lat" in o:
+            dre = math.hypot(*_ne_error(o["dr_lat"], o["dr_lon"], tr["lat"], tr["lon"]))
+            dr_errs.append(dre)
+        last_sub = (e, dre if dre is not None else math.nan)
+    ranges = [o for o in outputs if o.get("type") == "range"]
+    if not errs:
+        nan = math.nan
+        return Score(nan, nan, nan, nan, nan, nan, nan, 0, 0, 0)
+    a = np.array(errs)
+    return Score(
+        rms_m=float(np.sqrt(np.mean(a**2))),
+        p95_m=float(np.percentile(a, 95)),
+        surfacing_m=last_sub[0] if last_sub else math.nan,
+        inside95=float(np.mean(inside)),
+        current_rms_mps=float(np.sqrt(np.mean(np.array(cur_errs) ** 2))),
+        dr_rms_m=float(np.sqrt(np.mean(np.array(dr_errs) ** 2))) if dr_errs else math.nan,
+        dr_surfacing_m=last_sub[1] if last_sub else math.nan,
+        accepted=sum(1 for r in ranges if r["accepted"]),
+        rejected=sum(1 for r in ranges if not r["accepted"]),
+        reacquisitions=sum(1 for r in ranges if r.get("reason") == "gate_reacquire"),
+    )

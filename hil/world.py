@@ -1,0 +1,279 @@
+"""The world simulator: truth for a mission and what each sensor would have said.
+
+Pure computation, no I/O: the same model later drives the device emulators in
+real time.  Truth is propagated with GeographicLib and placed in ECEF with PROJ (the
+references, deliberately not navd's own geodesy, so a shared bug cannot make a
+test pass).
+
+The simulated vehicle follows legs at a commanded speed and depth with a turn-rate
+limit through a water current that may vary in time; a boat carries the beacon
+(with its GPS error, transducer swing and depth, its own motion and drift); the
+acoustic channel pings every ``ping_interval_s`` with the true round-trip timing,
+drops in bursts (Gilbert-Elliott), multipath outliers that read long, corrupted
+beacon positions in replies, range noise and the modem's sound speed against the
+water's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from geographiclib.geodesic import Geodesic
+from pyproj import Transformer
+
+from hil.scenario import Scenario
+from navd.acoustics import coppens
+from navd.records import Depth, Gps, Heading, Range, Record, Rpm
+
+_GEOD = Geodesic.WGS84
+# WGS-84 geographic 3-D (EPSG:4979) to geocentric (EPSG:4978), PROJ as the reference.
+_ECEF = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
+_GPS_SURFACE_DEPTH_M = 0.2  # the antenna is out of the water above this depth
+
+
+@dataclass(frozen=True, slots=True)
+class TruthSample:
+    t: float
+    lat: float
+    lon: float
+    depth: float
+    heading_deg: float  # true
+    speed_mps: float  # through the water
+    current_n: float
+    current_e: float
+    boat_lat: float
+    boat_lon: float
+
+
+@dataclass(slots=True)
+class Mission:
+    scenario: Scenario
+    seed: int
+    truth: list[TruthSample]
+    records: list[Record]
+    pings: int
+    replies: int
+
+
+def _wrap_deg(a: float) -> float:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+class _Plan:
+    """Commanded heading, speed and depth over time."""
+
+    def __init__(self, sc: Scenario) -> None:
+        v = sc.vehicle
+        self.v = v
+        self.t_dive = v.surface_before_s
+        self.descent = v.depth_m / v.dive_rate_mps
+        t = self.t_dive
+        self.legs = []
+        for leg in v.legs:
+            self.legs.append((t, t + leg.duration_s, leg))
+            t += leg.duration_s
+        self.t_up = t  # end of the last leg: start ascending
+        self.t_surface = t + self.descent
+        self.t_end = self.t_surface + v.surface_after_s
+
+    def command(self, t: float) -> tuple[float | None, float, float]:
+        """(heading_deg or None to hold, speed, depth) commanded at t."""
+        v = self.v
+        if t < self.t_dive or t >= self.t_surface:
+            return None, 0.0, 0.0
+        if t >= self.t_up:
+            return None, v.speed_mps, v.depth_m * max(0.0, 1.0 - (t - self.t_up) / self.descent)
+        depth = min(v.depth_m, (t - self.t_dive) * v.dive_rate_mps)
+        for t0, t1, leg in self.legs:
+            if t0 <= t < t1:
+                return leg.heading_deg, leg.speed_mps or v.speed_mps, depth
+        return None, v.speed_mps, depth  # pragma: no cover
+
+
+def current_at(sc: Scenario, t: float) -> tuple[float, float]:
+    c = sc.current
+    speed = c.speed_mps + c.tidal_amplitude_mps * math.sin(2.0 * math.pi * t / c.tidal_period_s)
+    toward = math.radians(c.toward_deg + c.veer_deg_per_hour * t / 3600.0)
+    return speed * math.cos(toward), speed * math.sin(toward)
+
+
+def _ecef(lat: float, lon: float, h: float) -> np.ndarray:
+    return np.array(_ECEF.transform(lon, lat, h))
+
+
+def _offset(lat: float, lon: float, dn: float, de: float) -> tuple[float, float]:
+    d = math.hypot(dn, de)
+    if d == 0.0:
+        return lat, lon
+    r = _GEOD.Direct(lat, lon, math.degrees(math.atan2(de, dn)), d)
+    return r["lat2"], _wrap_deg(r["lon2"])
+
+
+def simulate(sc: Scenario, seed: int) -> Mission:
+    """Run the whole mission; truth at the sensor rate and every sensor record, time-ordered."""
+    rng = np.random.default_rng(seed)
+    plan = _Plan(sc)
+    s = sc.sensors
+    b = sc.boat
+    dt = 1.0 / s.rate_hz
+    n_steps = int(math.floor(plan.t_end / dt)) + 1
+
+    lat, lon = sc.vehicle.lat, sc.vehicle.lon
+    first = next((leg.heading_deg for leg in sc.vehicle.legs), 0.0)
+    heading = first % 360.0
+    depth = 0.0
+    boat_lat, boat_lon = _offset(lat, lon, b.north_m, b.east_m)
+    boat_course = b.heading_deg
+    gps_err = rng.normal(0.0, b.gps_std_m, 2)
+    swing = np.zeros(2)
+    truth: list[TruthSample] = []
+    boat_gps: list[tuple[float, float]] = []
+    transducer: list[tuple[float, float]] = []
+    records: list[Record] = []
+    gps_was_up = True
+    t_last_surfaced = -1e9  # the GPS was warm before the mission starts
+    phi_gm = math.exp(-dt / b.gps_corr_s)
+
+    for k in range(n_steps):
+        t = k * dt
+        cmd_heading, speed, cmd_depth = plan.command(t)
+        # vehicle dynamics: turn-rate limit, depth rate limit
+        if cmd_heading is not None:
+            err = _wrap_deg(cmd_heading - heading)
+            step = math.copysign(min(abs(err), sc.vehicle.turn_rate_deg_s * dt), err)
+            heading = (heading + step) % 360.0
+        ddepth = cmd_depth - depth
+        depth += math.copysign(min(abs(ddepth), sc.vehicle.dive_rate_mps * dt), ddepth)
+        cn, ce = current_at(sc, t)
+        truth.append(
+            TruthSample(t, lat, lon, depth, heading, speed, cn, ce, boat_lat, boat_lon)
+        )
+        # boat GPS (Gauss-Markov error) and transducer swing
+        gps_err = phi_gm * gps_err + math.sqrt(1 - phi_gm**2) * rng.normal(0.0, b.gps_std_m, 2)
+        blat, blon = _offset(boat_lat, boat_lon, gps_err[0], gps_err[1])
+        boat_gps.append((blat, blon))
+        if b.swing_m > 0:
+            swing = 0.98 * swing + rng.normal(0.0, 0.2 * b.swing_m * math.sqrt(dt), 2)
+            norm = float(np.hypot(*swing))
+            if norm > b.swing_m:
+                swing *= b.swing_m / norm
+        transducer.append(_offset(boat_lat, boat_lon, float(swing[0]), float(swing[1])))
+
+        # sensors at this instant
+        hmag = (heading - s.declination_deg + s.compass_bias_deg + rng.normal(0, s.compass_noise_deg))
+        records.append(Heading(t, hmag % 360.0))
+        rpm = speed * s.rpm_per_mps + (rng.normal(0, s.rpm_noise) if speed > 0 else 0.0)
+        records.append(Rpm(t, max(0.0, rpm)))
+        records.append(Depth(t, depth + rng.normal(0, s.depth_noise_m)))
+        at_surface = depth < _GPS_SURFACE_DEPTH_M
+        if at_surface and not gps_was_up:
+            t_last_surfaced = t
+        gps_was_up = at_surface
+        if at_surface and k % max(1, round(s.rate_hz)) == 0:
+            since = t - t_last_surfaced
+            if since < s.gps_acquire_s:
+                records.append(Gps(t, None, None, None, 0, None))
+            else:
+                warm = max(0.0, 1.0 - (since - s.gps_acquire_s) / max(s.gps_warmup_s, 1e-9))
+                std = s.gps_std_m + warm * s.gps_warmup_std_m
+                glat, glon = _offset(lat, lon, *rng.normal(0.0, std, 2))
+                records.append(
+                    Gps(t, glat, glon, sc.surface_altitude_m + rng.normal(0, 3.0), 1, 1.0 + 3 * warm)
+                )
+
+        # move vehicle and boat over dt
+        vn = speed * math.cos(math.radians(heading)) + cn
+        ve = speed * math.sin(math.radians(heading)) + ce
+        lat, lon = _offset(lat, lon, vn * dt, ve * dt)
+        if b.wander_mps > 0:
+            boat_course += rng.normal(0.0, 20.0 * math.sqrt(dt))
+        bvn = b.speed_mps * math.cos(math.radians(boat_course))
+        bve = b.speed_mps * math.sin(math.radians(boat_course))
+        if b.drifts_with_current:
+            bvn += cn
+            bve += ce
+        bvn += rng.normal(0.0, b.wander_mps)
+        bve += rng.normal(0.0, b.wander_mps)
+        boat_lat, boat_lon = _offset(boat_lat, boat_lon, bvn * dt, bve * dt)
+
+    pings, replies, acoustic = _acoustics(sc, rng, truth, boat_gps, transducer, dt)
+    records.extend(acoustic)
+    records.sort(key=lambda r: r.t)  # stable: sensor order within an instant is kept
+    return Mission(sc, seed, truth, records, pings, replies)
+
+
+def _acoustics(
+    sc: Scenario,
+    rng: np.random.Generator,
+    truth: list[TruthSample],
+    boat_gps: list[tuple[float, float]],
+    transducer: list[tuple[float, float]],
+    dt: float,
+) -> tuple[int, int, list[Record]]:
+    a = sc.acoustics
+    h0 = sc.surface_altitude_m
+    c_water = coppens(a.temperature_c, a.salinity_ppt, 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m))
+    n = len(truth)
+    t_end = (n - 1) * dt
+
+    def vehicle_at(t: float) -> np.ndarray:
+        i = min(n - 2, max(0, int(t / dt)))
+        w = (t - i * dt) / dt
+        p0, p1 = truth[i], truth[i + 1]
+        return (1 - w) * _ecef(p0.lat, p0.lon, h0 - p0.depth) + w * _ecef(p1.lat, p1.lon, h0 - p1.depth)
+
+    def transducer_at(t: float) -> np.ndarray:
+        i = min(n - 2, max(0, int(t / dt)))
+        w = (t - i * dt) / dt
+        (la0, lo0), (la1, lo1) = transducer[i], transducer[i + 1]
+        hd = h0 - sc.boat.transducer_depth_m
+        return (1 - w) * _ecef(la0, lo0, hd) + w * _ecef(la1, lo1, hd)
+
+    # Gilbert-Elliott drops: bad state entered with p_gb, left with p_bg = 1/burst.
+    p_bg = 1.0 / a.drop_burst_pings
+    frac = min(a.drop_prob, 0.95)
+    p_gb = frac * p_bg / max(1e-9, 1.0 - frac)
+    bad = False
+    out: list[Record] = []
+    pings = replies = 0
+    t_ping = a.ping_interval_s
+    while t_ping < t_end - a.timeout_s:
+        pings += 1
+        bad = (rng.random() >= p_bg) if bad else (rng.random() < p_gb)
+        if not bad:
+            pv = vehicle_at(t_ping)
+            tb = t_ping
+            for _ in range(4):  # out leg: the beacon hears the ping at tb
+                tb = t_ping + float(np.linalg.norm(transducer_at(tb) - pv)) / c_water
+            pb = transducer_at(tb)
+            tr = tb + a.turnaround_s
+            for _ in range(4):  # back leg: the vehicle hears the reply at tr
+                tr = tb + a.turnaround_s + float(np.linalg.norm(vehicle_at(tr) - pb)) / c_water
+            if tr - t_ping <= a.timeout_s:
+                replies += 1
+                m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
+                m += rng.normal(0.0, a.range_noise_m)
+                if rng.random() < a.multipath_prob:
+                    m += rng.exponential(a.multipath_mean_m)
+                i = min(n - 1, int(round(tb / dt)))
+                blat, blon = boat_gps[i]
+                bdepth: float | None = sc.boat.transducer_depth_m
+                if rng.random() < a.corrupt_position_prob:
+                    kind = rng.integers(3)
+                    if kind == 0:  # a garbled digit: hundreds of metres to kilometres off
+                        blat += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
+                    elif kind == 1:
+                        blon += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
+                    else:  # the position field missing from the reply
+                        blat = blon = None  # type: ignore[assignment]
+                        bdepth = None
+                out.append(
+                    Range(
+                        round(tr, 6), round(t_ping, 6), round(max(0.0, m), 3), "udb",
+                        blat, None if blon is None else _wrap_deg(blon), bdepth,
+                    )
+                )
+        t_ping += a.ping_interval_s
+    return pings, replies, out
