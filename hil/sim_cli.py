@@ -47,7 +47,14 @@ def crew_config(sc: Scenario) -> dict[str, Any]:
                 "modem_mps": a.modem_mps,
             },
         },
-        "beacons": {"udb": {"depth": sc.boat.transducer_depth_m, "turnaround_s": a.turnaround_s}},
+        "beacons": {
+            "udb": {
+                "depth": sc.boat.transducer_depth_m,
+                "turnaround_s": a.turnaround_s,
+                # what the crew knows of the beacon's GPS (a receiver's data-sheet figure)
+                "position_std_m": sc.boat.gps_std_m,
+            }
+        },
         "site": {"name": sc.name},
     }
     merged = deep_merge(auto, sc.config)

@@ -75,6 +75,9 @@ class NoiseConfig:
 @dataclass(frozen=True, slots=True)
 class GateConfig:
     chi2: float = _num(9.0, gt=0.0)  # innovation gate on nu^2 / S (9 = 3 sigma)
+    # Multipath makes ranges read long, never short: a range longer than predicted
+    # gets the tighter gate (4 = 2 sigma).
+    chi2_long: float = _num(4.0, gt=0.0)
     reacquire_after: int = _num(3, lo=1, hi=100)  # consecutive rejections before re-acquiring
     max_beacon_speed_mps: float = _num(8.0, gt=0.0)  # faster apparent beacon motion = corrupt
     max_range_m: float = _num(10000.0, gt=0.0)
@@ -107,6 +110,9 @@ class Beacon:
     lon: float | None = _num(None, lo=-180.0, hi=180.0)  # type: ignore[arg-type]
     depth: float = _num(0.0, lo=0.0, hi=11000.0)
     turnaround_s: float = _num(0.0, lo=0.0, hi=10.0)
+    # one-sigma horizontal error of the position the beacon reports (its GPS, the
+    # transducer's offset and swing); added to the range variance by the default filter
+    position_std_m: float = _num(5.0, lo=0.0, hi=1000.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,6 +18,7 @@ class BeaconFix:
     lon: float
     depth: float
     turnaround_s: float
+    position_std_m: float
 
 
 class BeaconResolver:
@@ -55,6 +56,7 @@ class BeaconResolver:
         if depth is None:
             depth = cfg.depth if cfg else 0.0
         turnaround = cfg.turnaround_s if cfg else 0.0
+        pos_std = cfg.position_std_m if cfg else Beacon().position_std_m
         if lat is None or lon is None:
             return None, "no_beacon_position"
         lat_r, lon_r = math.radians(lat), math.radians(lon)
@@ -68,4 +70,4 @@ class BeaconResolver:
                     return None, "beacon_jump"
             self._candidate.pop(name, None)
             self._last[name] = (t, lat_r, lon_r)
-        return BeaconFix(lat_r, lon_r, depth, turnaround), "ok"
+        return BeaconFix(lat_r, lon_r, depth, turnaround, pos_std), "ok"

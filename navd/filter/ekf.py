@@ -17,7 +17,8 @@ What it changes from the thesis, and why:
   of the out and back legs, the ping end found by undoing the dead-reckoned motion
   since ``t_ping`` (recorded per step), with its dependence on the current.
 * Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of a
-  one-sigma radius, and re-acquisition: after ``reacquire_after`` consecutive
+  one-sigma radius, tighter for ranges that read long (multipath only lengthens
+  a path), and re-acquisition: after ``reacquire_after`` consecutive
   rejections the position and current covariance is inflated by the size of the
   residual, so a filter that has drifted (too small a current prior) is never
   locked out for good.
@@ -41,9 +42,12 @@ _TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip ge
 
 
 class RangeEKF:
-    def __init__(self, noise: NoiseConfig, gate_chi2: float, reacquire_after: int) -> None:
+    def __init__(
+        self, noise: NoiseConfig, gate_chi2: float, gate_chi2_long: float, reacquire_after: int
+    ) -> None:
         self.noise = noise
         self.gate_chi2 = gate_chi2
+        self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
         self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
         self.P = np.eye(N_STATES)
@@ -182,8 +186,9 @@ class RangeEKF:
         r_var = m.std_m**2
         residual = m.range_m - expected
         S = float(H @ self.P @ H) + r_var
-        gate_m = math.sqrt(self.gate_chi2 * S)
-        if residual * residual > self.gate_chi2 * S:
+        chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
+        gate_m = math.sqrt(chi2 * S)
+        if residual * residual > chi2 * S:
             self.rejections_in_row += 1
             if self.rejections_in_row >= self.reacquire_after:
                 self._reacquire(residual, m.t)
@@ -200,11 +205,13 @@ class RangeEKF:
         # Consecutive rejections mean the estimate, not the ranges, has gone wrong (the
         # seed's Chesapeake run: current prior too small, every range rejected).  Widen
         # position by the residual and the current by the drift rate it implies.
-        since = max(30.0, t - (self.t_last_accept if self.t_last_accept is not None else t))
+        # The current is widened by the drift rate the residual implies, never beyond its prior.
+        since = max(60.0, t - (self.t_last_accept if self.t_last_accept is not None else t))
+        cur_var = min((residual / since) ** 2, self.noise.current_init_std_mps**2)
         self.P[0, 0] += residual**2
         self.P[1, 1] += residual**2
-        self.P[2, 2] += (residual / since) ** 2
-        self.P[3, 3] += (residual / since) ** 2
+        self.P[2, 2] += cur_var
+        self.P[3, 3] += cur_var
         self.rejections_in_row = 0
         self.reacquisitions += 1
         self.history.correct(self.x.copy(), self.P.copy())

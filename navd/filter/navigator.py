@@ -49,7 +49,7 @@ def make_filter(cfg: Config) -> NavFilter:
             nz.thesis_position_walk_m_per_sqrt_s,
             nz.thesis_current_walk_mps_per_sqrt_s,
         )
-    return RangeEKF(nz, nav.gate.chi2, nav.gate.reacquire_after)
+    return RangeEKF(nz, nav.gate.chi2, nav.gate.chi2_long, nav.gate.reacquire_after)
 
 
 class Navigator:
@@ -268,7 +268,7 @@ class Navigator:
             beacon_lon=fix.lon,
             beacon_hd=h - fix.depth,
             vehicle_hd=h - self._depth,
-            std_m=self.nav.noise.range_std_m,
+            std_m=self._range_std(fix.position_std_m),
         )
         d: RangeDecision = self.filter.range_update(meas)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
@@ -276,6 +276,13 @@ class Navigator:
             self.counters[f"range_{d.reason}"] += 1
         out.update(accepted=d.accepted, residual_m=d.residual_m, gate_m=d.gate_m, reason=d.reason)
         return out
+
+    def _range_std(self, beacon_position_std_m: float) -> float:
+        # The thesis takes the range noise alone; the default filter adds the error
+        # of the position the beacon reported, which the range inherits along the
+        # line of sight.
+        r = self.nav.noise.range_std_m
+        return r if self.thesis else math.hypot(r, beacon_position_std_m)
 
     # -- outputs -----------------------------------------------------------------------
     def mode(self, t: float) -> str:
