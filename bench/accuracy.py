@@ -31,8 +31,17 @@ def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
         # the crew config with the filter mode set; navigation is always present
         cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
     out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
-    cmd = [sys.executable, "-m", "navd.cli", "replay", str(mission_dir / "measurements.jsonl"),
-           "--config", str(cfg), "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "navd.cli",
+        "replay",
+        str(mission_dir / "measurements.jsonl"),
+        "--config",
+        str(cfg),
+        "--out",
+        str(out),
+    ]
     if smooth:
         cmd.append("--smooth")
     subprocess.run(cmd, check=True, capture_output=True, text=True)
@@ -95,16 +104,23 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
         f"{_m(tot['default']):.1f} | | | {_m(tot['in95']):.2f} | | | | {_m(tot['smoothed']):.1f} |"
     )
     ratio = _m(tot["default"]) / _m(tot["thesis"])
-    worse_than_thesis = [n for n, a, b in zip(results, tot["default"], tot["thesis"], strict=True) if a > b]
-    worse_than_dr = [n for n, a, b in zip(results, tot["default"], tot["dr"], strict=True) if a > 1.1 * b]
+    worse_than_thesis = [
+        n for n, a, b in zip(results, tot["default"], tot["thesis"], strict=True) if a > b
+    ]
+    worse_than_dr = [
+        n for n, a, b in zip(results, tot["default"], tot["dr"], strict=True) if a > 1.1 * b
+    ]
+    n_smooth_better = sum(
+        s < f for s, f in zip(tot["smoothed"], tot["default"], strict=True)
+    )
+    worse_dr = ", ".join(worse_than_dr) or "none"
     lines += [
         "",
         f"- default / thesis mean RMS: **{ratio:.2f}** (target <= 0.5)",
         f"- scenarios where default is worse than thesis: {', '.join(worse_than_thesis) or 'none'}",
-        f"- scenarios where default is >10 % worse than dead reckoning: {', '.join(worse_than_dr) or 'none'}",
+        f"- scenarios where default is >10 % worse than dead reckoning: {worse_dr}",
         f"- truth inside the 95 % ellipse, suite mean: {_m(tot['in95']):.2f} (target >= 0.90)",
-        f"- smoothed below filtered on {sum(s < f for s, f in zip(tot['smoothed'], tot['default'], strict=True))}"
-        f"/{len(tot['default'])} scenarios",
+        f"- smoothed below filtered on {n_smooth_better}/{len(tot['default'])} scenarios",
     ]
     return "\n".join(lines)
 
@@ -132,8 +148,11 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             results[name] = run_scenario(name, seeds, Path(tmp))
-            print(f"{name}: default {_m([s.rms_m for s in results[name]['default']]):.1f} m, "
-                  f"thesis {_m([s.rms_m for s in results[name]['thesis']]):.1f} m", file=sys.stderr)
+            print(
+                f"{name}: default {_m([s.rms_m for s in results[name]['default']]):.1f} m, "
+                f"thesis {_m([s.rms_m for s in results[name]['thesis']]):.1f} m",
+                file=sys.stderr,
+            )
     body = table(results, seeds)
     print(body)
     if args.write:

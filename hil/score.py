@@ -65,7 +65,9 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         except np.linalg.LinAlgError:
             d2 = math.inf
         inside.append(d2 <= CHI2_2DOF_95)
-        cur_errs.append(math.hypot(o["current_n"] - tr["current_n"], o["current_e"] - tr["current_e"]))
+        cur_errs.append(
+            math.hypot(o["current_n"] - tr["current_n"], o["current_e"] - tr["current_e"])
+        )
         dre = None
         if "dr_lat" in o:
             dre = math.hypot(*_ne_error(o["dr_lat"], o["dr_lon"], tr["lat"], tr["lon"]))

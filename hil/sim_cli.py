@@ -62,7 +62,9 @@ def crew_config(sc: Scenario) -> dict[str, Any]:
     return merged
 
 
-def write_mission(m: Mission, out_dir: Path, config_overrides: dict[str, Any] | None = None) -> None:
+def write_mission(
+    m: Mission, out_dir: Path, config_overrides: dict[str, Any] | None = None
+) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     with (out_dir / "measurements.jsonl").open("w", encoding="utf-8") as fh:
         w = MeasurementWriter(fh, m.scenario.start_utc, scenario=m.scenario.name, seed=m.seed)
@@ -99,8 +101,11 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"navd-sim: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 2
-    print(f"navd-sim: {sc.name} seed {args.seed}: {len(mission.records)} records, "
-          f"{mission.replies}/{mission.pings} pings answered -> {args.out}", file=sys.stderr)
+    print(
+        f"navd-sim: {sc.name} seed {args.seed}: {len(mission.records)} records, "
+        f"{mission.replies}/{mission.pings} pings answered -> {args.out}",
+        file=sys.stderr,
+    )
     return 0
 
 

@@ -147,9 +147,7 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         ddepth = cmd_depth - depth
         depth += math.copysign(min(abs(ddepth), sc.vehicle.dive_rate_mps * dt), ddepth)
         cn, ce = current_at(sc, t)
-        truth.append(
-            TruthSample(t, lat, lon, depth, heading, speed, cn, ce, boat_lat, boat_lon)
-        )
+        truth.append(TruthSample(t, lat, lon, depth, heading, speed, cn, ce, boat_lat, boat_lon))
         # boat GPS (Gauss-Markov error) and transducer swing
         gps_err = phi_gm * gps_err + math.sqrt(1 - phi_gm**2) * rng.normal(0.0, b.gps_std_m, 2)
         blat, blon = _offset(boat_lat, boat_lon, gps_err[0], gps_err[1])
@@ -162,7 +160,7 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         transducer.append(_offset(boat_lat, boat_lon, float(swing[0]), float(swing[1])))
 
         # sensors at this instant
-        hmag = (heading - s.declination_deg + s.compass_bias_deg + rng.normal(0, s.compass_noise_deg))
+        hmag = heading - s.declination_deg + s.compass_bias_deg + rng.normal(0, s.compass_noise_deg)
         records.append(Heading(t, hmag % 360.0))
         rpm = speed * s.rpm_per_mps + (rng.normal(0, s.rpm_noise) if speed > 0 else 0.0)
         records.append(Rpm(t, max(0.0, rpm)))
@@ -180,7 +178,9 @@ def simulate(sc: Scenario, seed: int) -> Mission:
                 std = s.gps_std_m + warm * s.gps_warmup_std_m
                 glat, glon = _offset(lat, lon, *rng.normal(0.0, std, 2))
                 records.append(
-                    Gps(t, glat, glon, sc.surface_altitude_m + rng.normal(0, 3.0), 1, 1.0 + 3 * warm)
+                    Gps(
+                        t, glat, glon, sc.surface_altitude_m + rng.normal(0, 3.0), 1, 1.0 + 3 * warm
+                    )
                 )
 
         # move vehicle and boat over dt
@@ -214,7 +214,9 @@ def _acoustics(
 ) -> tuple[int, int, list[Record]]:
     a = sc.acoustics
     h0 = sc.surface_altitude_m
-    c_water = coppens(a.temperature_c, a.salinity_ppt, 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m))
+    c_water = coppens(
+        a.temperature_c, a.salinity_ppt, 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m)
+    )
     n = len(truth)
     t_end = (n - 1) * dt
 
@@ -222,7 +224,9 @@ def _acoustics(
         i = min(n - 2, max(0, int(t / dt)))
         w = (t - i * dt) / dt
         p0, p1 = truth[i], truth[i + 1]
-        return (1 - w) * _ecef(p0.lat, p0.lon, h0 - p0.depth) + w * _ecef(p1.lat, p1.lon, h0 - p1.depth)
+        return (1 - w) * _ecef(p0.lat, p0.lon, h0 - p0.depth) + w * _ecef(
+            p1.lat, p1.lon, h0 - p1.depth
+        )
 
     def transducer_at(t: float) -> np.ndarray:
         i = min(n - 2, max(0, int(t / dt)))
@@ -271,8 +275,13 @@ def _acoustics(
                         bdepth = None
                 out.append(
                     Range(
-                        round(tr, 6), round(t_ping, 6), round(max(0.0, m), 3), "udb",
-                        blat, None if blon is None else _wrap_deg(blon), bdepth,
+                        round(tr, 6),
+                        round(t_ping, 6),
+                        round(max(0.0, m), 3),
+                        "udb",
+                        blat,
+                        None if blon is None else _wrap_deg(blon),
+                        bdepth,
                     )
                 )
         t_ping += a.ping_interval_s

@@ -52,7 +52,9 @@ def coppens(temperature_c: float, salinity_ppt: float, depth_m: float) -> float:
     s = salinity_ppt - 35.0
     d = depth_m / 1000.0  # the equation takes kilometres
     c0 = 1449.05 + 45.7 * t - 5.21 * t**2 + 0.23 * t**3 + (1.333 - 0.126 * t + 0.009 * t**2) * s
-    return c0 + (16.23 + 0.253 * t) * d + (0.213 - 0.1 * t) * d**2 + (0.016 + 0.0002 * s) * s * t * d
+    return (
+        c0 + (16.23 + 0.253 * t) * d + (0.213 - 0.1 * t) * d**2 + (0.016 + 0.0002 * s) * s * t * d
+    )
 
 
 def validity_warnings(
@@ -95,7 +97,7 @@ class SoundSpeed:
 
 
 def travel_time_to_range(twtt_s: float, sound_speed_mps: float, turnaround_s: float = 0.0) -> float:
-    """One-way range from a round-trip travel time less the transponder's turnaround (seed 004 eq. 1)."""
+    """One-way range from a round-trip time less the transponder's turnaround (seed 004 eq. 1)."""
     return 0.5 * sound_speed_mps * (twtt_s - turnaround_s)
 
 

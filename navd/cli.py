@@ -32,7 +32,10 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     cfg = load_config(args.file)
     nav = cfg.navigation
     print(f"{args.file}: ok")
-    print(f"  filter mode {nav.filter}, {nav.rate_hz:g} Hz, declination {nav.magnetic_declination_deg:+g} deg")
+    print(
+        f"  filter mode {nav.filter}, {nav.rate_hz:g} Hz, "
+        f"declination {nav.magnetic_declination_deg:+g} deg"
+    )
     print(f"  speed map {nav.speed.rpm_per_mps:g} RPM per m/s; sound speed {nav.sound_speed.model}")
     for name, b in cfg.beacons.items():
         where = f"{b.lat}, {b.lon}" if b.lat is not None else "position from replies only"

@@ -158,9 +158,7 @@ def great_circle_step(
     return lat2, wrap_lon(lon2)
 
 
-def _geodesic_rates(
-    lat: float, az: float, hd: float, ell: Ellipsoid
-) -> tuple[float, float, float]:
+def _geodesic_rates(lat: float, az: float, hd: float, ell: Ellipsoid) -> tuple[float, float, float]:
     # d(lat)/ds, d(lon)/ds, d(azimuth)/ds along a geodesic; Clairaut's relation
     # N cos(lat) sin(az) = const gives the azimuth rate.
     s = math.sin(lat)
@@ -215,8 +213,11 @@ def offset_position(
 
 def metres_per_degree(lat: float) -> tuple[float, float]:
     """Length of a degree of latitude and of longitude in metres (eq. 3.15, NGA formula)."""
-    m_lat = 111132.92 - 559.82 * math.cos(2 * lat) + 1.175 * math.cos(4 * lat) - 0.0023 * math.cos(
-        6 * lat
+    m_lat = (
+        111132.92
+        - 559.82 * math.cos(2 * lat)
+        + 1.175 * math.cos(4 * lat)
+        - 0.0023 * math.cos(6 * lat)
     )
     m_lon = 111412.84 * math.cos(lat) - 93.5 * math.cos(3 * lat) + 0.118 * math.cos(5 * lat)
     return m_lat, m_lon

@@ -157,11 +157,15 @@ def _check_header(obj: Any) -> dict[str, Any]:
     if not isinstance(obj, dict) or obj.get("format") != FORMAT:
         raise LogError(f"line 1: not a measurement log header (expected format '{FORMAT}')")
     if obj.get("version") != VERSION:
-        raise LogError(f"line 1: unsupported version {obj.get('version')!r} (reader knows {VERSION})")
+        raise LogError(
+            f"line 1: unsupported version {obj.get('version')!r} (reader knows {VERSION})"
+        )
     return obj
 
 
-def iter_lines(lines: Iterable[str], strict: bool = False) -> Iterator[tuple[int, Record | Skipped]]:
+def iter_lines(
+    lines: Iterable[str], strict: bool = False
+) -> Iterator[tuple[int, Record | Skipped]]:
     """Records (or skips) from the lines after the header, numbered from 2."""
     last_t = -math.inf
     for no, raw in enumerate(lines, start=2):

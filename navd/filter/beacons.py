@@ -37,7 +37,9 @@ class BeaconResolver:
         self._last: dict[str, tuple[float, float, float]] = {}
         self._candidate: dict[str, tuple[float, float, float]] = {}
 
-    def _moved_too_far(self, a: tuple[float, float, float], t: float, lat: float, lon: float) -> bool:
+    def _moved_too_far(
+        self, a: tuple[float, float, float], t: float, lat: float, lon: float
+    ) -> bool:
         ta, lat_a, lon_a = a
         e, n, _ = geodesy.enu_offset(lat_a, lon_a, 0.0, lat, lon, 0.0)
         return math.hypot(e, n) > _POSITION_SLACK_M + self.max_speed * abs(t - ta)

@@ -18,10 +18,10 @@ What it changes from the thesis, and why:
   since ``t_ping`` (recorded per step), with its dependence on the current.
 * Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of a
   one-sigma radius, tighter for ranges that read long (multipath only lengthens
-  a path), and re-acquisition: after ``reacquire_after`` consecutive
-  rejections the position and current covariance is inflated by the size of the
-  residual, so a filter that has drifted (too small a current prior) is never
-  locked out for good.
+  a path), and re-acquisition: when ``reacquire_after`` of the last
+  ``2 * reacquire_after`` ranges were rejected, the position and current
+  covariance is inflated by the largest of those residuals, so a filter that has
+  drifted (too small a current prior) is never locked out for good.
 * Joseph-form update, symmetrised covariance, positions moved along geodesics.
 """
 
@@ -53,7 +53,8 @@ class RangeEKF:
         self.P = np.eye(N_STATES)
         self.initialised = False
         self.history = History()
-        self.rejections_in_row = 0
+        # recent gate decisions: (accepted, residual); see _reacquire
+        self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
         self.t_last_accept: float | None = None
         self.t = 0.0
@@ -95,7 +96,7 @@ class RangeEKF:
         self.P = 0.5 * (P + P.T)
         self._apply(K @ np.array([n, e]), hd)
         self.t_last_accept = self.t
-        self.rejections_in_row = 0
+        self._recent.clear()
         self.history.correct(self.x.copy(), self.P.copy())
 
     # -- prediction --------------------------------------------------------------------
@@ -189,14 +190,15 @@ class RangeEKF:
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
         if residual * residual > chi2 * S:
-            self.rejections_in_row += 1
-            if self.rejections_in_row >= self.reacquire_after:
-                self._reacquire(residual, m.t)
+            self._recent.append((False, residual))
+            rejected = [r for ok, r in self._recent if not ok]
+            if len(rejected) >= self.reacquire_after:
+                self._reacquire(max(rejected, key=abs), m.t)
                 return RangeDecision(False, residual, gate_m, "gate_reacquire")
             return RangeDecision(False, residual, gate_m, "gate")
         K, self.P, _ = joseph_update(self.P, H, r_var)
         self._apply(K * residual, m.vehicle_hd)
-        self.rejections_in_row = 0
+        self._recent.append((True, residual))
         self.t_last_accept = m.t
         self.history.correct(self.x.copy(), self.P.copy())
         return RangeDecision(True, residual, gate_m, "ok")
@@ -212,7 +214,7 @@ class RangeEKF:
         self.P[1, 1] += residual**2
         self.P[2, 2] += cur_var
         self.P[3, 3] += cur_var
-        self.rejections_in_row = 0
+        self._recent.clear()
         self.reacquisitions += 1
         self.history.correct(self.x.copy(), self.P.copy())
 

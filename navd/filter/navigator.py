@@ -181,8 +181,10 @@ class Navigator:
 
     def _on_pressure(self, rec: Pressure) -> None:
         site = self.cfg.site
-        self._depth = (rec.bar - site.surface_pressure_bar) * 1e5 / (
-            site.water_density_kgm3 * site.gravity_mps2
+        self._depth = (
+            (rec.bar - site.surface_pressure_bar)
+            * 1e5
+            / (site.water_density_kgm3 * site.gravity_mps2)
         )
 
     def _on_velocity(self, rec: Velocity) -> None:

@@ -150,7 +150,9 @@ class ThesisEKF:
 
     def range_update(self, m: RangeMeas) -> RangeDecision:
         # The thesis takes the range as belonging to the arrival time.
-        expected, H = measurement_model(self.x, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd)
+        expected, H = measurement_model(
+            self.x, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
+        )
         r_var = m.std_m**2
         r_e = radius_of_error(self.P, self.x[0], r_var)
         residual = m.range_m - expected

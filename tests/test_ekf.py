@@ -1,0 +1,107 @@
+"""The default filter: round-trip range model, Joseph update, gate and re-acquisition."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navd import geodesy
+from navd.config import NoiseConfig
+from navd.filter.common import RangeMeas
+from navd.filter.ekf import RangeEKF
+
+R = math.radians
+LAT, LON = R(38.32), R(-76.39)
+
+
+def _ekf(pos_std: float = 5.0, noise: NoiseConfig | None = None) -> RangeEKF:
+    f = RangeEKF(noise or NoiseConfig(), 9.0, 4.0, 3)
+    f.initialise(LAT, LON, pos_std, 0.0)
+    return f
+
+
+def _run(f: RangeEKF, seconds: float, heading: float = R(90.0), speed: float = 1.5) -> None:
+    t0 = f.t
+    for k in range(1, int(seconds * 10) + 1):
+        f.predict(t0 + 0.1 * k, 0.1, heading, speed, -1.0)
+
+
+def _beacon(north: float, east: float) -> tuple[float, float]:
+    return geodesy.offset_position(LAT, LON, north, east)
+
+
+def test_round_trip_range_uses_the_position_at_the_ping() -> None:
+    f = _ekf()
+    _run(f, 20.0)  # eastward at 1.5 m/s
+    blat, blon = _beacon(0.0, 0.0)  # beacon at the start, vehicle 30 m east of it
+    m = RangeMeas(f.t, f.t - 2.0, 0.0, "b", blat, blon, -1.0, -1.0, 1.0)
+    predicted, _ = f.predicted_range(m)
+    # out leg from 27 m east, back leg to 30 m east: the mean is 28.5 m
+    assert predicted == pytest.approx(28.5, abs=0.05)
+
+
+def test_range_jacobian_matches_finite_differences() -> None:
+    f = _ekf()
+    _run(f, 20.0)
+    blat, blon = _beacon(-80.0, 40.0)
+    m = RangeMeas(f.t, f.t - 3.0, 0.0, "b", blat, blon, -1.0, -1.0, 1.0)
+    _, H = f.predicted_range(m)
+    x0 = f.x.copy()
+    for j, eps in ((0, 0.01), (1, 0.01)):
+        dx = np.zeros(6)
+        dx[j] = eps
+        f.x = f.state_apply(x0, dx, -1.0)
+        hp, _ = f.predicted_range(m)
+        f.x = f.state_apply(x0, -dx, -1.0)
+        hm, _ = f.predicted_range(m)
+        assert H[j] == pytest.approx((hp - hm) / (2 * eps), abs=1e-4)
+    f.x = x0
+
+
+def test_covariance_stays_symmetric_positive_definite() -> None:
+    rng = np.random.default_rng(3)
+    f = _ekf()
+    for k in range(300):
+        _run(f, 1.0, heading=R(rng.uniform(0, 360)))
+        if k % 10 == 0:
+            blat, blon = _beacon(*rng.uniform(-300, 300, 2))
+            est, _ = f.predicted_range(RangeMeas(f.t, f.t - 0.2, 0, "b", blat, blon, -1, -1, 3.0))
+            f.range_update(
+                RangeMeas(f.t, f.t - 0.2, est + rng.normal(0, 3), "b", blat, blon, -1, -1, 3.0)
+            )
+        assert np.array_equal(f.P, f.P.T)
+        assert np.all(np.linalg.eigvalsh(f.P) > 0)
+
+
+def test_long_ranges_get_the_tighter_gate() -> None:
+    f = _ekf(pos_std=2.0)
+    blat, blon = _beacon(100.0, 0.0)
+    est, H = f.predicted_range(RangeMeas(0.0, 0.0, 0, "b", blat, blon, -1, -1, 1.0))
+    s = math.sqrt(float(H @ f.P @ H) + 1.0)
+    short = f.range_update(RangeMeas(0.0, 0.0, est - 2.5 * s, "b", blat, blon, -1, -1, 1.0))
+    f2 = _ekf(pos_std=2.0)
+    long_ = f2.range_update(RangeMeas(0.0, 0.0, est + 2.5 * s, "b", blat, blon, -1, -1, 1.0))
+    assert short.accepted and not long_.accepted
+
+
+def test_never_locked_out_after_drifting() -> None:
+    """The Chesapeake failure: the estimate drifted far and the prior is too small."""
+    noise = NoiseConfig(current_init_std_mps=0.01)
+    f = _ekf(pos_std=2.0, noise=noise)
+    # the truth is 80 m north of where the filter thinks it is
+    true_lat, true_lon = geodesy.offset_position(LAT, LON, 80.0, 0.0)
+    decisions = []
+    beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
+    for k in range(12):
+        blat, blon = _beacon(*beacons[k % 3])
+        r = geodesy.ecef_distance(true_lat, true_lon, -1.0, blat, blon, -1.0)
+        f.t += 10.0
+        decisions.append(f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0)))
+    assert not decisions[0].accepted
+    first_ok = next(i for i, d in enumerate(decisions) if d.accepted)
+    assert first_ok <= 4
+    assert sum(d.accepted for d in decisions) >= 6
+    e, n, _ = geodesy.enu_offset(true_lat, true_lon, 0, f.x[0], f.x[1], 0)
+    assert math.hypot(e, n) < 10.0
