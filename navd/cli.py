@@ -77,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, LogError) as exc:
         print(f"navd: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        return 0
     except OSError as exc:
         name = getattr(exc, "filename", None) or ""
         print(f"navd: {name}: {exc.strerror or exc}", file=sys.stderr)

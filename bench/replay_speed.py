@@ -1,0 +1,81 @@
+"""``make bench-replay``: how fast ``navd replay`` runs a one-hour mission.
+
+Simulates the ``survey-1h`` scenario (3,700 s, 10 Hz sensors, a ping every 10 s),
+then times the ``navd replay`` command end to end (process start, reading and
+parsing the log, filtering, writing the output), best of three.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from hil.scenario import load_scenario
+from hil.sim_cli import write_mission
+from hil.world import simulate
+
+BEGIN = "<!-- bench-replay:begin -->"
+END = "<!-- bench-replay:end -->"
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--write", help="BENCHMARKS.md to update")
+    p.add_argument("--runs", type=int, default=3)
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        write_mission(simulate(load_scenario("survey-1h"), 1), d)
+        n_lines = sum(1 for _ in (d / "measurements.jsonl").open()) - 1
+        rows = []
+        for mode, smooth in (("default", False), ("thesis", False), ("default", True)):
+            cfg = d / f"config-{mode}.yaml"
+            text = (d / "config.yaml").read_text()
+            cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+            cmd = [sys.executable, "-m", "navd.cli", "replay", str(d / "measurements.jsonl"),
+                   "--config", str(cfg), "--out", str(d / "out.jsonl")]
+            if smooth:
+                cmd.append("--smooth")
+            best = float("inf")
+            for _ in range(args.runs):
+                t0 = time.perf_counter()
+                subprocess.run(cmd, check=True, capture_output=True)
+                best = min(best, time.perf_counter() - t0)
+            out = [json.loads(x) for x in (d / "out.jsonl").open()]
+            steps = sum(1 for o in out if o["type"] == "estimate")
+            ranges = sum(1 for o in out if o["type"] == "range")
+            label = mode + (" + RTS smoother" if smooth else "")
+            rows.append(f"| {label} | {n_lines} | {steps} | {ranges} | {best:.2f} |")
+    body = "\n".join(
+        [
+            f"One-hour mission (`survey-1h`, seed 1), best of {args.runs} runs of the whole "
+            "`navd replay` command.",
+            "",
+            "| mode | log records | filter steps out | ranges | wall time (s) |",
+            "|---|---|---|---|---|",
+            *rows,
+            "",
+            "Target: under 5 s for 36,000 filter steps and 360 pings.",
+        ]
+    )
+    print(body)
+    if args.write:
+        path = Path(args.write)
+        text = path.read_text() if path.exists() else "# Benchmarks\n"
+        section = f"{BEGIN}\n{body}\n{END}"
+        if BEGIN in text:
+            head, rest = text.split(BEGIN, 1)
+            text = head + section + rest.split(END, 1)[1]
+        else:
+            text = text.rstrip() + "\n\n## Replay speed (`make bench-replay`)\n\n" + section + "\n"
+        path.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

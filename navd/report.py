@@ -1,0 +1,188 @@
+"""``navd report``: mission figures in the manner of seed 000 Figures 4.6-4.25, and a summary.
+
+Inputs are the replay output (estimates and range decisions) and, optionally, the
+measurement log (for the vehicle's GPS fixes) and the simulator's truth.  Tracks
+are drawn on a local metric grid (east/north metres from the first estimate).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from navd import geodesy
+from navd.mlog import read_measurement_log
+from navd.records import Gps
+
+_SURFACE_GAP_S = 5.0
+
+
+def _read_jsonl(path: str | Path) -> list[dict[str, Any]]:
+    out = []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            if line.strip():
+                out.append(json.loads(line))
+    return out
+
+
+class _Grid:
+    def __init__(self, lat0: float, lon0: float) -> None:
+        self.lat0, self.lon0 = math.radians(lat0), math.radians(lon0)
+
+    def en(self, lat: float, lon: float) -> tuple[float, float]:
+        e, n, _ = geodesy.enu_offset(
+            self.lat0, self.lon0, 0.0, math.radians(lat), math.radians(lon), 0.0
+        )
+        return e, n
+
+
+def _surfacing_error(est: list[dict], fixes: list[Gps]) -> tuple[float, float] | None:
+    """Distance from the last submerged estimate to the first GPS fix after surfacing."""
+    last_sub = None
+    for e in est:
+        if e["mode"] == "submerged":
+            last_sub = e
+    if last_sub is None:
+        return None
+    after = [f for f in fixes if f.t > last_sub["t"] and f.lat is not None]
+    if not after:
+        return None
+    f = after[0]
+    g = _Grid(last_sub["lat"], last_sub["lon"])
+    return math.hypot(*g.en(f.lat, f.lon)), f.t - last_sub["t"]
+
+
+def make_report(
+    output: str | Path,
+    out_dir: str | Path,
+    truth: str | Path | None = None,
+    measurements: str | Path | None = None,
+) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = _read_jsonl(output)
+    est = [r for r in rows if r.get("type") == "estimate"]
+    rng = [r for r in rows if r.get("type") == "range"]
+    if not est:
+        raise ValueError(f"{output}: no estimates to report")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    grid = _Grid(est[0]["lat"], est[0]["lon"])
+    fixes: list[Gps] = []
+    if measurements:
+        fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
+    tru = _read_jsonl(truth) if truth else []
+
+    # -- track ---------------------------------------------------------------------
+    fig, ax = plt.subplots(figsize=(8, 8))
+    e, n = zip(*(grid.en(r["lat"], r["lon"]) for r in est), strict=True)
+    if tru:
+        te, tn = zip(*(grid.en(s["lat"], s["lon"]) for s in tru[::10]), strict=True)
+        ax.plot(te, tn, "k--", lw=1, label="truth")
+    dr = [r for r in est if "dr_lat" in r]
+    if dr:
+        de, dn = zip(*(grid.en(r["dr_lat"], r["dr_lon"]) for r in dr), strict=True)
+        ax.plot(de, dn, color="magenta", lw=1, label="dead reckoning")
+    ax.plot(e, n, color="green", lw=1.5, label="estimate")
+    acc_t = {round(r["t"], 1) for r in rng if r["accepted"]}
+    acc = [grid.en(r["lat"], r["lon"]) for r in est if round(r["t"], 1) in acc_t]
+    if acc:
+        ax.plot(*zip(*acc, strict=True), "gx", ms=6, label="range accepted")
+    if fixes:
+        ge, gn = zip(*(grid.en(f.lat, f.lon) for f in fixes if f.lat is not None), strict=True)
+        ax.plot(ge, gn, "r.", ms=3, label="GPS fixes")
+    bea = [grid.en(r["beacon_lat"], r["beacon_lon"]) for r in rng if "beacon_lat" in r]
+    if bea:
+        ax.plot(*zip(*bea, strict=True), "c^", ms=4, label="beacon (as reported)")
+    ax.plot(e[0], n[0], "wD", mec="k", ms=8, label="start")
+    ax.plot(e[-1], n[-1], "rD", mec="k", ms=8, label="end")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title("Track")
+    fig.tight_layout()
+    fig.savefig(out / "track.png", dpi=110)
+    plt.close(fig)
+
+    # -- ranges ----------------------------------------------------------------------
+    fig, ax = plt.subplots(figsize=(9, 4))
+    a = [(r["t"], r["range_m"]) for r in rng if r["accepted"] and "range_m" in r]
+    rj = [(r["t"], r["range_m"]) for r in rng if not r["accepted"] and "range_m" in r]
+    if a:
+        ax.plot(*zip(*a, strict=True), "bx", label=f"accepted ({len(a)})")
+    if rj:
+        ax.plot(*zip(*rj, strict=True), "rx", label=f"rejected ({len(rj)})")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("range (m)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Ranges to the beacon")
+    fig.tight_layout()
+    fig.savefig(out / "ranges.png", dpi=110)
+    plt.close(fig)
+
+    # -- current and uncertainty ---------------------------------------------------
+    t = [r["t"] for r in est]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    ax1.plot(t, [r["current_n"] for r in est], label="north")
+    ax1.plot(t, [r["current_e"] for r in est], label="east")
+    if tru:
+        ax1.plot([s["t"] for s in tru], [s["current_n"] for s in tru], "C0--", lw=0.8)
+        ax1.plot([s["t"] for s in tru], [s["current_e"] for s in tru], "C1--", lw=0.8)
+    ax1.set_ylabel("current (m/s)")
+    ax1.legend(fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(t, [r["std_n"] for r in est], label="1-sigma north")
+    ax2.plot(t, [r["std_e"] for r in est], label="1-sigma east")
+    if tru:
+        by_t = {round(s["t"], 3): s for s in tru}
+        err = []
+        for r in est:
+            s = by_t.get(round(r["t"], 3))
+            if s is not None:
+                g = _Grid(s["lat"], s["lon"])
+                err.append((r["t"], math.hypot(*g.en(r["lat"], r["lon"]))))
+        if err:
+            ax2.plot(*zip(*err, strict=True), "k", lw=0.8, label="error vs truth")
+    ax2.set_xlabel("t (s)")
+    ax2.set_ylabel("metres")
+    ax2.legend(fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "current_uncertainty.png", dpi=110)
+    plt.close(fig)
+
+    # -- summary -------------------------------------------------------------------
+    lines = [
+        f"estimates: {len(est)} over {est[-1]['t'] - est[0]['t']:.0f} s",
+        f"ranges: {len(rng)} reached the filter, {sum(r['accepted'] for r in rng)} accepted, "
+        f"{sum(not r['accepted'] for r in rng)} rejected",
+    ]
+    reasons: dict[str, int] = {}
+    for r in rng:
+        if not r["accepted"]:
+            reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
+    if reasons:
+        lines.append("rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items())))
+    surf = _surfacing_error(est, fixes)
+    if surf is not None:
+        lines.append(
+            f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
+        )
+    last = est[-1]
+    lines.append(
+        f"final estimate: {last['lat']:.7f}, {last['lon']:.7f}; current "
+        f"{last['current_n']:+.3f} N {last['current_e']:+.3f} E m/s"
+    )
+    lines.append(f"figures: {out / 'track.png'}, {out / 'ranges.png'}, {out / 'current_uncertainty.png'}")
+    text = "\n".join(lines)
+    (out / "summary.txt").write_text(text + "\n", encoding="utf-8")
+    return text

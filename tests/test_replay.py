@@ -1,0 +1,149 @@
+"""navd replay per the contract: formats, errors, smoothing, determinism."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import mission
+
+from hil.score import read_jsonl, score
+from hil.sim_cli import write_mission
+
+NAVD = [sys.executable, "-m", "navd.cli"]
+HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*NAVD, *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def claytor(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("claytor2")
+    write_mission(mission("claytor-2", 7), d)
+    return d
+
+
+def test_replay_writes_estimates_at_10hz_and_range_decisions(claytor: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.jsonl"
+    r = run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
+            "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    rows = read_jsonl(out)
+    est = [o for o in rows if o["type"] == "estimate"]
+    rng = [o for o in rows if o["type"] == "range"]
+    for key in ("t", "lat", "lon", "depth", "current_n", "current_e", "std_n", "std_e", "mode"):
+        assert all(key in o for o in est)
+    assert {o["mode"] for o in est} >= {"surface", "submerged"}
+    dts = {round(b["t"] - a["t"], 6) for a, b in zip(est, est[1:], strict=False)}
+    assert dts == {0.1}
+    assert rng and all({"beacon", "accepted", "residual_m", "gate_m", "reason"} <= o.keys() for o in rng)
+    assert sum(o["accepted"] for o in rng) > len(rng) / 2
+    assert all(math.isfinite(v) for o in est for v in o.values() if isinstance(v, float))
+
+
+def test_replay_is_deterministic(claytor: Path, tmp_path: Path) -> None:
+    outs = []
+    for i in range(2):
+        out = tmp_path / f"o{i}.jsonl"
+        run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
+            "--out", str(out))
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+
+
+def test_filter_beats_dead_reckoning_and_smoother_beats_filter(claytor: Path, tmp_path: Path) -> None:
+    truth = read_jsonl(claytor / "truth.jsonl")
+    args = [str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml")]
+    assert run("replay", *args, "--out", str(tmp_path / "f.jsonl")).returncode == 0
+    assert run("replay", *args, "--smooth", "--out", str(tmp_path / "s.jsonl")).returncode == 0
+    filt = score(read_jsonl(tmp_path / "f.jsonl"), truth)
+    smooth_rows = read_jsonl(tmp_path / "s.jsonl")
+    assert all(o.get("smoothed") for o in smooth_rows if o["type"] == "estimate")
+    smooth = score(smooth_rows, truth)
+    assert smooth.rms_m < filt.rms_m
+    assert filt.rms_m < 25.0
+
+
+def test_missing_file_is_one_line_exit_2(tmp_path: Path) -> None:
+    r = run("replay", str(tmp_path / "nope.jsonl"), "--out", str(tmp_path / "o.jsonl"))
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "nope.jsonl" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_malformed_lines_are_skipped_and_reported_with_numbers(tmp_path: Path) -> None:
+    log = tmp_path / "m.jsonl"
+    log.write_text(
+        HEADER
+        + '{"type":"gps","t":0,"lat":37.05,"lon":-80.66,"alt":530,"fix":1}\n'
+        + '{"type":"heading","t":0.1,"deg":"north"}\n'  # line 3: wrong type
+        + "not json\n"  # line 4
+        + '{"type":"depth","t":0.2,"m":NaN}\n'  # line 5: NaN
+        + '{"type":"rpm","t":0.3,"rpm":900}\n'
+    )
+    out = tmp_path / "o.jsonl"
+    r = run("replay", str(log), "--out", str(out))
+    assert r.returncode == 0
+    for n in (3, 4, 5):
+        assert f"line {n}:" in r.stderr
+    assert "3 lines skipped" in r.stderr
+    strict = run("replay", str(log), "--out", str(out), "--strict")
+    assert strict.returncode == 2
+    assert "line 3" in strict.stderr and strict.stderr.count("\n") == 1
+
+
+def test_bad_config_key_names_the_key(claytor: Path, tmp_path: Path) -> None:
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("navigation:\n  speed:\n    rpm_per_mps: -3\n")
+    r = run("replay", str(claytor / "measurements.jsonl"), "--config", str(cfg), "--out",
+            str(tmp_path / "o.jsonl"))
+    assert r.returncode == 2
+    assert "navigation.speed.rpm_per_mps" in r.stderr and r.stderr.count("\n") == 1
+    cfg.write_text("navigation:\n  rate_hz: 10\n  magic: 1\n")
+    r = run("check-config", str(cfg))
+    assert r.returncode == 2 and "navigation.magic: unknown key" in r.stderr
+
+
+def test_check_config_accepts_the_shipped_config() -> None:
+    root = Path(__file__).resolve().parent.parent
+    r = run("check-config", str(root / "config" / "navd.yaml"))
+    assert r.returncode == 0, r.stderr
+    assert "ok" in r.stdout
+
+
+def test_report_writes_figures(claytor: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.jsonl"
+    run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
+        "--out", str(out))
+    r = run("report", str(out), "--truth", str(claytor / "truth.jsonl"), "--log",
+            str(claytor / "measurements.jsonl"), "--out", str(tmp_path / "rep"))
+    assert r.returncode == 0, r.stderr
+    for name in ("track.png", "ranges.png", "current_uncertainty.png", "summary.txt"):
+        assert (tmp_path / "rep" / name).stat().st_size > 1000 or name == "summary.txt"
+    assert "error at surfacing" in (tmp_path / "rep" / "summary.txt").read_text()
+
+
+def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:
+    """A raw travel time and a beacon known only from config reach the filter."""
+    log = tmp_path / "tt.jsonl"
+    lines = [HEADER.strip()]
+    for k in range(50):
+        lines.append(json.dumps({"type": "gps", "t": k * 0.1, "lat": 37.05, "lon": -80.66,
+                                 "alt": 0.0, "fix": 1}))
+    # beacon 150 m due north of the vehicle, fresh water at 10 degC: c = 1447.3 m/s
+    lines.append(json.dumps({"type": "travel_time", "t": 5.0, "t_ping": 4.8,
+                             "twtt_s": 2 * 150.0 / 1447.3 + 0.1, "beacon": "lbl1"}))
+    log.write_text("\n".join(lines) + "\n")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("beacons:\n  lbl1:\n    lat: 37.0513486\n    lon: -80.66\n    depth: 0.0\n"
+                   "    turnaround_s: 0.1\n")
+    out = tmp_path / "o.jsonl"
+    r = run("replay", str(log), "--config", str(cfg), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    (rng,) = [o for o in read_jsonl(out) if o["type"] == "range"]
+    assert rng["accepted"] and abs(rng["residual_m"]) < 1.0
