@@ -110,9 +110,7 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
     worse_than_dr = [
         n for n, a, b in zip(results, tot["default"], tot["dr"], strict=True) if a > 1.1 * b
     ]
-    n_smooth_better = sum(
-        s < f for s, f in zip(tot["smoothed"], tot["default"], strict=True)
-    )
+    n_smooth_better = sum(s < f for s, f in zip(tot["smoothed"], tot["default"], strict=True))
     worse_dr = ", ".join(worse_than_dr) or "none"
     lines += [
         "",

@@ -37,8 +37,17 @@ def main() -> int:
             cfg = d / f"config-{mode}.yaml"
             text = (d / "config.yaml").read_text()
             cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
-            cmd = [sys.executable, "-m", "navd.cli", "replay", str(d / "measurements.jsonl"),
-                   "--config", str(cfg), "--out", str(d / "out.jsonl")]
+            cmd = [
+                sys.executable,
+                "-m",
+                "navd.cli",
+                "replay",
+                str(d / "measurements.jsonl"),
+                "--config",
+                str(cfg),
+                "--out",
+                str(d / "out.jsonl"),
+            ]
             if smooth:
                 cmd.append("--smooth")
             best = float("inf")

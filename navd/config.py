@@ -97,6 +97,7 @@ class NavigationConfig:
     magnetic_declination_deg: float = _num(0.0, lo=-180.0, hi=180.0)
     surface_depth_m: float = _num(0.3, lo=0.0, hi=20.0)
     stale_input_s: float = _num(1.0, gt=0.0)
+    max_gap_s: float = _num(600.0, gt=0.0)  # a longer silence in the input restarts the filter
     speed: SpeedConfig = field(default_factory=SpeedConfig)
     sound_speed: SoundSpeedConfig = field(default_factory=SoundSpeedConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)

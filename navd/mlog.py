@@ -30,6 +30,7 @@ from navd.records import (
 )
 
 FORMAT = "navd-measurements"
+MAX_ABS_T = 1e9  # about 30 years of seconds: beyond it a time stamp is corrupt, not a mission
 VERSION = 1
 
 __all__ = ["LogError", "Skipped", "MeasurementLog", "read_measurement_log", "MeasurementWriter"]
@@ -91,7 +92,7 @@ def _beacon_fields(obj: dict) -> tuple[float | None, float | None, float | None]
 
 
 def _ping_time(obj: dict, t: float) -> float:
-    tp = _num(obj, "t_ping")
+    tp = _num(obj, "t_ping", -MAX_ABS_T, MAX_ABS_T)
     if tp > t:
         raise _Bad("t_ping is after t")
     return tp
@@ -148,7 +149,7 @@ def parse_record(obj: Any) -> Record:
         parser = _PARSERS.get(kind) if isinstance(kind, str) else None
         if parser is None:
             raise _Bad(f"unknown record type {kind!r}")
-        return parser(obj, _num(obj, "t"))
+        return parser(obj, _num(obj, "t", -MAX_ABS_T, MAX_ABS_T))
     except _Bad as exc:
         raise ValueError(str(exc)) from None
 

@@ -171,7 +171,9 @@ def make_report(
         if not r["accepted"]:
             reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
     if reasons:
-        lines.append("rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items())))
+        lines.append(
+            "rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
+        )
     surf = _surfacing_error(est, fixes)
     if surf is not None:
         lines.append(
@@ -182,7 +184,9 @@ def make_report(
         f"final estimate: {last['lat']:.7f}, {last['lon']:.7f}; current "
         f"{last['current_n']:+.3f} N {last['current_e']:+.3f} E m/s"
     )
-    lines.append(f"figures: {out / 'track.png'}, {out / 'ranges.png'}, {out / 'current_uncertainty.png'}")
+    lines.append(
+        f"figures: {out / 'track.png'}, {out / 'ranges.png'}, {out / 'current_uncertainty.png'}"
+    )
     text = "\n".join(lines)
     (out / "summary.txt").write_text(text + "\n", encoding="utf-8")
     return text

@@ -15,17 +15,49 @@ from navd.records import Record
 
 numbers = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
-    st.integers(-10**6, 10**6),
+    st.integers(-(10**6), 10**6),
     st.sampled_from([0, 1, 2, -1, 1e308, -0.0]),
 )
-values = st.one_of(numbers, st.none(), st.booleans(), st.text(max_size=5), st.lists(numbers, max_size=2))
-TYPES = ["heading", "attitude", "rpm", "depth", "pressure", "gps", "range", "travel_time",
-         "velocity", "bogus"]
-FIELDS = ["deg", "roll_deg", "pitch_deg", "yaw_deg", "rpm", "m", "bar", "lat", "lon", "alt",
-          "fix", "hdop", "t_ping", "beacon", "beacon_lat", "beacon_lon", "beacon_depth", "twtt_s",
-          "u", "v", "w"]
+values = st.one_of(
+    numbers, st.none(), st.booleans(), st.text(max_size=5), st.lists(numbers, max_size=2)
+)
+TYPES = [
+    "heading",
+    "attitude",
+    "rpm",
+    "depth",
+    "pressure",
+    "gps",
+    "range",
+    "travel_time",
+    "velocity",
+    "bogus",
+]
+FIELDS = [
+    "deg",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "rpm",
+    "m",
+    "bar",
+    "lat",
+    "lon",
+    "alt",
+    "fix",
+    "hdop",
+    "t_ping",
+    "beacon",
+    "beacon_lat",
+    "beacon_lon",
+    "beacon_depth",
+    "twtt_s",
+    "u",
+    "v",
+    "w",
+]
 records = st.fixed_dictionaries(
-    {"type": st.sampled_from(TYPES), "t": st.one_of(st.floats(0, 100), numbers)},
+    {"type": st.sampled_from(TYPES), "t": st.one_of(st.floats(0, 100), st.floats(0, 1e6), numbers)},
     optional={f: values for f in FIELDS},
 )
 
@@ -58,7 +90,9 @@ def test_log_reader_never_raises_and_counts_every_bad_line(raw: list[str]) -> No
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_filter_never_publishes_nan(objs: list[dict]) -> None:
     seed = ['{"type":"gps","t":0,"lat":37.05,"lon":-80.66,"alt":0,"fix":1}']
-    recs = [it for _, it in iter_lines(seed + [_line(o) for o in objs]) if not isinstance(it, Skipped)]
+    recs = [
+        it for _, it in iter_lines(seed + [_line(o) for o in objs]) if not isinstance(it, Skipped)
+    ]
     nav = Navigator(config_from_dict({}))
     out = []
     for r in recs:
@@ -73,7 +107,9 @@ def test_filter_never_publishes_nan(objs: list[dict]) -> None:
 
 config_values = st.recursive(
     st.one_of(numbers, st.none(), st.booleans(), st.text(max_size=8)),
-    lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=8), inner, max_size=3)),
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=8), inner, max_size=3)
+    ),
     max_leaves=8,
 )
 config_docs = st.one_of(
@@ -82,8 +118,11 @@ config_docs = st.one_of(
         {},
         optional={
             "navigation": st.dictionaries(
-                st.sampled_from(["rate_hz", "filter", "speed", "noise", "gate", "sound_speed", "x"]),
-                config_values, max_size=4,
+                st.sampled_from(
+                    ["rate_hz", "filter", "speed", "noise", "gate", "sound_speed", "x"]
+                ),
+                config_values,
+                max_size=4,
             ),
             "beacons": st.dictionaries(st.text(max_size=4), config_values, max_size=2),
             "site": config_values,

@@ -31,8 +31,14 @@ def claytor(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_replay_writes_estimates_at_10hz_and_range_decisions(claytor: Path, tmp_path: Path) -> None:
     out = tmp_path / "out.jsonl"
-    r = run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
-            "--out", str(out))
+    r = run(
+        "replay",
+        str(claytor / "measurements.jsonl"),
+        "--config",
+        str(claytor / "config.yaml"),
+        "--out",
+        str(out),
+    )
     assert r.returncode == 0, r.stderr
     rows = read_jsonl(out)
     est = [o for o in rows if o["type"] == "estimate"]
@@ -42,7 +48,9 @@ def test_replay_writes_estimates_at_10hz_and_range_decisions(claytor: Path, tmp_
     assert {o["mode"] for o in est} >= {"surface", "submerged"}
     dts = {round(b["t"] - a["t"], 6) for a, b in zip(est, est[1:], strict=False)}
     assert dts == {0.1}
-    assert rng and all({"beacon", "accepted", "residual_m", "gate_m", "reason"} <= o.keys() for o in rng)
+    assert rng and all(
+        {"beacon", "accepted", "residual_m", "gate_m", "reason"} <= o.keys() for o in rng
+    )
     assert sum(o["accepted"] for o in rng) > len(rng) / 2
     assert all(math.isfinite(v) for o in est for v in o.values() if isinstance(v, float))
 
@@ -51,13 +59,21 @@ def test_replay_is_deterministic(claytor: Path, tmp_path: Path) -> None:
     outs = []
     for i in range(2):
         out = tmp_path / f"o{i}.jsonl"
-        run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
-            "--out", str(out))
+        run(
+            "replay",
+            str(claytor / "measurements.jsonl"),
+            "--config",
+            str(claytor / "config.yaml"),
+            "--out",
+            str(out),
+        )
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
 
 
-def test_filter_beats_dead_reckoning_and_smoother_beats_filter(claytor: Path, tmp_path: Path) -> None:
+def test_filter_beats_dead_reckoning_and_smoother_beats_filter(
+    claytor: Path, tmp_path: Path
+) -> None:
     truth = read_jsonl(claytor / "truth.jsonl")
     args = [str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml")]
     assert run("replay", *args, "--out", str(tmp_path / "f.jsonl")).returncode == 0
@@ -100,8 +116,14 @@ def test_malformed_lines_are_skipped_and_reported_with_numbers(tmp_path: Path) -
 def test_bad_config_key_names_the_key(claytor: Path, tmp_path: Path) -> None:
     cfg = tmp_path / "bad.yaml"
     cfg.write_text("navigation:\n  speed:\n    rpm_per_mps: -3\n")
-    r = run("replay", str(claytor / "measurements.jsonl"), "--config", str(cfg), "--out",
-            str(tmp_path / "o.jsonl"))
+    r = run(
+        "replay",
+        str(claytor / "measurements.jsonl"),
+        "--config",
+        str(cfg),
+        "--out",
+        str(tmp_path / "o.jsonl"),
+    )
     assert r.returncode == 2
     assert "navigation.speed.rpm_per_mps" in r.stderr and r.stderr.count("\n") == 1
     cfg.write_text("navigation:\n  rate_hz: 10\n  magic: 1\n")
@@ -118,10 +140,24 @@ def test_check_config_accepts_the_shipped_config() -> None:
 
 def test_report_writes_figures(claytor: Path, tmp_path: Path) -> None:
     out = tmp_path / "out.jsonl"
-    run("replay", str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml"),
-        "--out", str(out))
-    r = run("report", str(out), "--truth", str(claytor / "truth.jsonl"), "--log",
-            str(claytor / "measurements.jsonl"), "--out", str(tmp_path / "rep"))
+    run(
+        "replay",
+        str(claytor / "measurements.jsonl"),
+        "--config",
+        str(claytor / "config.yaml"),
+        "--out",
+        str(out),
+    )
+    r = run(
+        "report",
+        str(out),
+        "--truth",
+        str(claytor / "truth.jsonl"),
+        "--log",
+        str(claytor / "measurements.jsonl"),
+        "--out",
+        str(tmp_path / "rep"),
+    )
     assert r.returncode == 0, r.stderr
     for name in ("track.png", "ranges.png", "current_uncertainty.png", "summary.txt"):
         assert (tmp_path / "rep" / name).stat().st_size > 1000 or name == "summary.txt"
@@ -133,15 +169,29 @@ def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:
     log = tmp_path / "tt.jsonl"
     lines = [HEADER.strip()]
     for k in range(50):
-        lines.append(json.dumps({"type": "gps", "t": k * 0.1, "lat": 37.05, "lon": -80.66,
-                                 "alt": 0.0, "fix": 1}))
+        lines.append(
+            json.dumps(
+                {"type": "gps", "t": k * 0.1, "lat": 37.05, "lon": -80.66, "alt": 0.0, "fix": 1}
+            )
+        )
     # beacon 150 m due north of the vehicle, fresh water at 10 degC: c = 1447.3 m/s
-    lines.append(json.dumps({"type": "travel_time", "t": 5.0, "t_ping": 4.8,
-                             "twtt_s": 2 * 150.0 / 1447.3 + 0.1, "beacon": "lbl1"}))
+    lines.append(
+        json.dumps(
+            {
+                "type": "travel_time",
+                "t": 5.0,
+                "t_ping": 4.8,
+                "twtt_s": 2 * 150.0 / 1447.3 + 0.1,
+                "beacon": "lbl1",
+            }
+        )
+    )
     log.write_text("\n".join(lines) + "\n")
     cfg = tmp_path / "c.yaml"
-    cfg.write_text("beacons:\n  lbl1:\n    lat: 37.0513486\n    lon: -80.66\n    depth: 0.0\n"
-                   "    turnaround_s: 0.1\n")
+    cfg.write_text(
+        "beacons:\n  lbl1:\n    lat: 37.0513486\n    lon: -80.66\n    depth: 0.0\n"
+        "    turnaround_s: 0.1\n"
+    )
     out = tmp_path / "o.jsonl"
     r = run("replay", str(log), "--config", str(cfg), "--out", str(out))
     assert r.returncode == 0, r.stderr

@@ -80,17 +80,22 @@ class Navigator:
         self._t_gps: float | None = None
         self._t_gps_streak = -math.inf
         self._tick_steps: list[tuple[int, dict[str, Any]]] = []
+        self._smoothed_done: list[dict[str, Any]] = []
 
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
         """Consume one record; return the outputs (ticks before it, its decision)."""
         t = rec.t
-        if not math.isfinite(t):
-            self.counters["skipped_non_finite_time"] += 1
+        if not math.isfinite(t) or abs(t) > 1e9:
+            self.counters["skipped_bad_time"] += 1
             return []
         if self._t_filter is not None and t < self._t_filter:
             self.counters["skipped_out_of_order"] += 1
             return []
+        if self._t_filter is not None and t - self._t_filter > self.nav.max_gap_s:
+            # Nothing heard for that long: the old estimate means nothing, and filling
+            # the gap with ticks could mean millions of them.  Start over at the next fix.
+            self._restart()
         out = self._ticks_until(t, inclusive=False)
         self._propagate_to(t)
         handler = _HANDLERS.get(type(rec))
@@ -102,12 +107,28 @@ class Navigator:
             out.append(decision)
         return out
 
+    def _restart(self) -> None:
+        self.counters["restarts_after_gap"] += 1
+        enabled = self.filter.history.enabled
+        if enabled:
+            self._smoothed_done.extend(self._smooth_segment())
+            self._tick_steps = []
+        self.filter = make_filter(self.cfg)
+        self.filter.history.enabled = enabled
+        self.dr = DeadReckoner()
+        self._tick_k = None
+        self._t_filter = None
+        self._t_gps = None
+
     def advance(self, t: float) -> list[dict[str, Any]]:
         """Run the ticks up to and including ``t`` (the daemon's clock, or the end of a log)."""
         return self._ticks_until(t, inclusive=True)
 
     def smoothed(self) -> list[dict[str, Any]]:
         """Estimates re-written by the Rauch-Tung-Striebel smoother over the whole history."""
+        return self._smoothed_done + self._smooth_segment()
+
+    def _smooth_segment(self) -> list[dict[str, Any]]:
         steps = self.filter.history.steps
         if not steps:
             return []
