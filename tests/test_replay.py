@@ -197,3 +197,22 @@ def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     (rng,) = [o for o in read_jsonl(out) if o["type"] == "range"]
     assert rng["accepted"] and abs(rng["residual_m"]) < 1.0
+
+
+def test_long_silence_restarts_at_the_next_fix() -> None:
+    """A log with an hour-long hole gives no ticks inside the hole and re-initialises on GPS."""
+    from navd.config import config_from_dict
+    from navd.filter import Navigator
+    from navd.records import Gps, Heading
+
+    nav = Navigator(config_from_dict({}))
+    out = []
+    for k in range(20):
+        out += nav.feed(Gps(k * 0.1, 37.05, -80.66, 0.0, 1))
+    out += nav.feed(Heading(3600.0, 10.0))  # nothing at all for an hour
+    out += nav.feed(Gps(3600.5, 37.06, -80.66, 0.0, 1))
+    out += nav.advance(3601.0)
+    est = [o for o in out if o["type"] == "estimate"]
+    assert not [o for o in est if 2.0 < o["t"] < 3600.5]
+    assert nav.counters["restarts_after_gap"] == 1
+    assert est[-1]["lat"] == pytest.approx(37.06, abs=1e-6)
