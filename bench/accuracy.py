@@ -15,21 +15,15 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench.common import mode_config, write_section
 from hil.scenario import list_scenarios, load_scenario
 from hil.score import Score, read_jsonl, score
 from hil.sim_cli import write_mission
 from hil.world import simulate
 
-BEGIN = "<!-- bench-accuracy:begin -->"
-END = "<!-- bench-accuracy:end -->"
-
 
 def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
-    cfg = mission_dir / f"config-{mode}.yaml"
-    if not cfg.exists():
-        text = (mission_dir / "config.yaml").read_text()
-        # the crew config with the filter mode set; navigation is always present
-        cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+    cfg = mode_config(mission_dir, mode)
     out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
     cmd = [
         sys.executable,
@@ -123,17 +117,6 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
     return "\n".join(lines)
 
 
-def write_section(path: Path, body: str) -> None:
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    section = f"{BEGIN}\n{body}\n{END}"
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + section + rest.split(END, 1)[1]
-    else:
-        text = text.rstrip() + "\n\n## Accuracy (`make bench-accuracy`)\n\n" + section + "\n"
-    path.write_text(text)
-
-
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=5)
@@ -154,7 +137,7 @@ def main() -> int:
     body = table(results, seeds)
     print(body)
     if args.write:
-        write_section(Path(args.write), body)
+        write_section(Path(args.write), "bench-accuracy", "Accuracy (`make bench-accuracy`)", body)
     return 0
 
 

@@ -15,12 +15,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench.common import mode_config, write_section
 from hil.scenario import load_scenario
 from hil.sim_cli import write_mission
 from hil.world import simulate
-
-BEGIN = "<!-- bench-replay:begin -->"
-END = "<!-- bench-replay:end -->"
 
 
 def main() -> int:
@@ -34,9 +32,7 @@ def main() -> int:
         n_lines = sum(1 for _ in (d / "measurements.jsonl").open()) - 1
         rows = []
         for mode, smooth in (("default", False), ("thesis", False), ("default", True)):
-            cfg = d / f"config-{mode}.yaml"
-            text = (d / "config.yaml").read_text()
-            cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+            cfg = mode_config(d, mode)
             cmd = [
                 sys.executable,
                 "-m",
@@ -74,15 +70,7 @@ def main() -> int:
     )
     print(body)
     if args.write:
-        path = Path(args.write)
-        text = path.read_text() if path.exists() else "# Benchmarks\n"
-        section = f"{BEGIN}\n{body}\n{END}"
-        if BEGIN in text:
-            head, rest = text.split(BEGIN, 1)
-            text = head + section + rest.split(END, 1)[1]
-        else:
-            text = text.rstrip() + "\n\n## Replay speed (`make bench-replay`)\n\n" + section + "\n"
-        path.write_text(text)
+        write_section(Path(args.write), "bench-replay", "Replay speed (`make bench-replay`)", body)
     return 0
 
 

@@ -1,0 +1,27 @@
+"""What the benchmarks share: a config per filter mode, and BENCHMARKS.md sections."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def mode_config(mission_dir: Path, mode: str) -> Path:
+    """The mission's crew config with ``navigation.filter`` set (navigation is always present)."""
+    cfg = mission_dir / f"config-{mode}.yaml"
+    if not cfg.exists():
+        text = (mission_dir / "config.yaml").read_text()
+        cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+    return cfg
+
+
+def write_section(path: Path, name: str, heading: str, body: str) -> None:
+    """Replace (or append) the section between ``<!-- name:begin/end -->`` markers."""
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    section = f"{begin}\n{body}\n{end}"
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        text = head + section + rest.split(end, 1)[1]
+    else:
+        text = text.rstrip() + f"\n\n## {heading}\n\n" + section + "\n"
+    path.write_text(text)
