@@ -58,7 +58,7 @@ class RangeEKF:
         self.reacquisitions = 0
         self.t_last_accept: float | None = None
         self.t = 0.0
-        # cumulative dead-reckoned displacement (t, north, east, along-track scale) per step
+        # cumulative dead-reckoned north/east displacement at each step time (round-trip model)
         self._track_t: deque[float] = deque()
         self._track_ne: deque[tuple[float, float]] = deque()
         self._cum_n = 0.0
