@@ -22,6 +22,18 @@ def run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([*NAVD, *args], capture_output=True, text=True, timeout=300)
 
 
+def replay_claytor(d: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    return run(
+        "replay",
+        str(d / "measurements.jsonl"),
+        "--config",
+        str(d / "config.yaml"),
+        "--out",
+        str(out),
+        *extra,
+    )
+
+
 @pytest.fixture(scope="module")
 def claytor(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("claytor2")
@@ -31,14 +43,7 @@ def claytor(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_replay_writes_estimates_at_10hz_and_range_decisions(claytor: Path, tmp_path: Path) -> None:
     out = tmp_path / "out.jsonl"
-    r = run(
-        "replay",
-        str(claytor / "measurements.jsonl"),
-        "--config",
-        str(claytor / "config.yaml"),
-        "--out",
-        str(out),
-    )
+    r = replay_claytor(claytor, out)
     assert r.returncode == 0, r.stderr
     rows = read_jsonl(out)
     est = [o for o in rows if o["type"] == "estimate"]
@@ -59,14 +64,7 @@ def test_replay_is_deterministic(claytor: Path, tmp_path: Path) -> None:
     outs = []
     for i in range(2):
         out = tmp_path / f"o{i}.jsonl"
-        run(
-            "replay",
-            str(claytor / "measurements.jsonl"),
-            "--config",
-            str(claytor / "config.yaml"),
-            "--out",
-            str(out),
-        )
+        replay_claytor(claytor, out)
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
 
@@ -75,9 +73,8 @@ def test_filter_beats_dead_reckoning_and_smoother_beats_filter(
     claytor: Path, tmp_path: Path
 ) -> None:
     truth = read_jsonl(claytor / "truth.jsonl")
-    args = [str(claytor / "measurements.jsonl"), "--config", str(claytor / "config.yaml")]
-    assert run("replay", *args, "--out", str(tmp_path / "f.jsonl")).returncode == 0
-    assert run("replay", *args, "--smooth", "--out", str(tmp_path / "s.jsonl")).returncode == 0
+    assert replay_claytor(claytor, tmp_path / "f.jsonl").returncode == 0
+    assert replay_claytor(claytor, tmp_path / "s.jsonl", "--smooth").returncode == 0
     filt = score(read_jsonl(tmp_path / "f.jsonl"), truth)
     smooth_rows = read_jsonl(tmp_path / "s.jsonl")
     assert all(o.get("smoothed") for o in smooth_rows if o["type"] == "estimate")
@@ -140,14 +137,7 @@ def test_check_config_accepts_the_shipped_config() -> None:
 
 def test_report_writes_figures(claytor: Path, tmp_path: Path) -> None:
     out = tmp_path / "out.jsonl"
-    run(
-        "replay",
-        str(claytor / "measurements.jsonl"),
-        "--config",
-        str(claytor / "config.yaml"),
-        "--out",
-        str(out),
-    )
+    replay_claytor(claytor, out)
     r = run(
         "report",
         str(out),
