@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import subprocess
 import sys
 import tempfile
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from bench.common import mode_config, write_section
@@ -126,9 +128,10 @@ def main() -> int:
     names = args.scenarios or [n for n in list_scenarios() if load_scenario(n).bench]
     seeds = list(range(1, args.seeds + 1))
     results = {}
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(os.cpu_count()) as pool:
+        futures = {n: pool.submit(run_scenario, n, seeds, Path(tmp)) for n in names}
         for name in names:
-            results[name] = run_scenario(name, seeds, Path(tmp))
+            results[name] = futures[name].result()
             print(
                 f"{name}: default {_m([s.rms_m for s in results[name]['default']]):.1f} m, "
                 f"thesis {_m([s.rms_m for s in results[name]['thesis']]):.1f} m",

@@ -112,8 +112,9 @@ class Beacon:
     depth: float = _num(0.0, lo=0.0, hi=11000.0)
     turnaround_s: float = _num(0.0, lo=0.0, hi=10.0)
     # one-sigma horizontal error of the position the beacon reports (its GPS, the
-    # transducer's offset and swing); added to the range variance by the default filter
+    # transducer's offset); the default filter estimates it as a slowly varying offset
     position_std_m: float = _num(5.0, lo=0.0, hi=1000.0)
+    position_corr_s: float = _num(120.0, gt=0.0)  # how slowly that error wanders (GPS: minutes)
 
 
 @dataclass(frozen=True, slots=True)

@@ -10,7 +10,7 @@ import pytest
 from navd import geodesy
 from navd.config import NoiseConfig
 from navd.filter.common import RangeMeas
-from navd.filter.ekf import RangeEKF
+from navd.filter.ekf import N_STATES, RangeEKF
 
 R = math.radians
 LAT, LON = R(38.32), R(-76.39)
@@ -50,7 +50,7 @@ def test_range_jacobian_matches_finite_differences() -> None:
     _, H = f.predicted_range(m)
     x0 = f.x.copy()
     for j, eps in ((0, 0.01), (1, 0.01)):
-        dx = np.zeros(6)
+        dx = np.zeros(N_STATES)
         dx[j] = eps
         f.x = f.state_apply(x0, dx, -1.0)
         hp, _ = f.predicted_range(m)
@@ -105,3 +105,19 @@ def test_never_locked_out_after_drifting() -> None:
     assert sum(d.accepted for d in decisions) >= 6
     e, n, _ = geodesy.enu_offset(true_lat, true_lon, 0, f.x[0], f.x[1], 0)
     assert math.hypot(e, n) < 10.0
+
+
+def test_learns_the_error_of_the_position_the_beacon_reports() -> None:
+    """Pinned by GPS at the surface, ranges reveal where the beacon really is."""
+    f = _ekf(pos_std=3.0)
+    true_lat, true_lon = _beacon(150.0, 0.0)
+    rep_lat, rep_lon = _beacon(170.0, 0.0)  # its GPS reads 20 m north of the truth
+    for _ in range(12):
+        _run(f, 10.0, speed=0.0)
+        f.gps_update(LAT, LON, 3.0, 0.0)
+        r = geodesy.ecef_distance(LAT, LON, -1.0, true_lat, true_lon, -1.0)
+        m = RangeMeas(f.t, f.t, r, "udb", rep_lat, rep_lon, -1.0, -1.0, 1.0, 7.0, 120.0)
+        assert f.range_update(m).accepted
+    assert f.primary == "udb"
+    assert f.x[6] == pytest.approx(-20.0, abs=3.0)  # true minus reported, north
+    assert math.sqrt(f.P[6, 6]) < 5.0

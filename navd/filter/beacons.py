@@ -19,6 +19,7 @@ class BeaconFix:
     depth: float
     turnaround_s: float
     position_std_m: float
+    position_corr_s: float
 
 
 class BeaconResolver:
@@ -57,8 +58,7 @@ class BeaconResolver:
         lon = lon_deg if lon_deg is not None else (cfg.lon if cfg else None)
         if depth is None:
             depth = cfg.depth if cfg else 0.0
-        turnaround = cfg.turnaround_s if cfg else 0.0
-        pos_std = cfg.position_std_m if cfg else Beacon().position_std_m
+        spec = cfg or Beacon()
         if lat is None or lon is None:
             return None, "no_beacon_position"
         lat_r, lon_r = math.radians(lat), math.radians(lon)
@@ -72,4 +72,9 @@ class BeaconResolver:
                     return None, "beacon_jump"
             self._candidate.pop(name, None)
             self._last[name] = (t, lat_r, lon_r)
-        return BeaconFix(lat_r, lon_r, depth, turnaround, pos_std), "ok"
+        return (
+            BeaconFix(
+                lat_r, lon_r, depth, spec.turnaround_s, spec.position_std_m, spec.position_corr_s
+            ),
+            "ok",
+        )

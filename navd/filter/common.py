@@ -20,7 +20,9 @@ class RangeMeas:
     beacon_lon: float
     beacon_hd: float
     vehicle_hd: float
-    std_m: float
+    std_m: float  # range noise
+    beacon_position_std_m: float = 0.0  # error of the position the beacon reported
+    beacon_position_corr_s: float = 120.0  # its correlation time
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,13 +2,20 @@
 
 Geodetic nominal state, as in the thesis, with an error state in metres:
 
-    nominal  x = (lat, lon, c_n, c_e, b, s)   radians, m/s, radians, scale
-    error   dx = (dn, de, dc_n, dc_e, db, ds) metres, m/s, radians, scale
+    nominal  x = (lat, lon, c_n, c_e, b, s, o_n, o_e)
+    error   dx = (dn, de, dc_n, dc_e, db, ds, do_n, do_e)
+             metres, m/s, radians, scale, metres
 
 * ``c_n, c_e`` water current north/east in m/s (the thesis carried rad/s).
 * ``b`` heading bias added to the declination-corrected compass heading (the
   Chesapeake runs had an uncalibrated AHRS).
 * ``s`` speed scale on the RPM-derived surge speed (the RPM map comes from a trial).
+* ``o_n, o_e`` error of the position the beacon reports (true minus reported), a
+  first-order Gauss-Markov process with the beacon's ``position_std_m`` and
+  ``position_corr_s``.  A boat's GPS wanders slowly: treated as white range
+  noise, its error made the filter overconfident (BENCHMARKS.md, consistency).
+  Only the first beacon heard has these states; others add their position error
+  to the range variance.
 
 What it changes from the thesis, and why:
 
@@ -37,7 +44,8 @@ from navd import geodesy
 from navd.config import NoiseConfig
 from navd.filter.common import Estimate, History, RangeDecision, RangeMeas, joseph_update
 
-N_STATES = 6
+N_STATES = 8
+_OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
 _TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip geometry
 
 
@@ -49,8 +57,12 @@ class RangeEKF:
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
-        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
         self.P = np.eye(N_STATES)
+        # the beacon whose reported-position error the offset states track, and its model
+        self.primary: str | None = None
+        self._off_std = 0.0
+        self._off_tau = math.inf
         self.initialised = False
         self.history = History()
         # recent gate decisions: (accepted, residual); see _reacquire
@@ -67,7 +79,7 @@ class RangeEKF:
     # -- initialisation and GPS -------------------------------------------------------
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         nz = self.noise
-        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0])
+        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
         self.P = np.diag(
             [
                 std_m**2,
@@ -76,6 +88,8 @@ class RangeEKF:
                 nz.current_init_std_mps**2,
                 math.radians(nz.heading_bias_init_std_deg) ** 2,
                 nz.speed_scale_init_std**2,
+                _OFFSET_PRIOR_M2,
+                _OFFSET_PRIOR_M2,
             ]
         )
         self.initialised = True
@@ -102,7 +116,7 @@ class RangeEKF:
     # -- prediction --------------------------------------------------------------------
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""
-        lat, lon, cn, ce, b, s = self.x
+        lat, lon, cn, ce, b, s = self.x[:6]
         psi = heading + b
         u = s * speed
         cpsi, spsi = math.cos(psi), math.sin(psi)
@@ -140,6 +154,11 @@ class RangeEKF:
         Q[2, 2] = Q[3, 3] = nz.current_walk_mps_per_sqrt_s**2 * dt
         Q[4, 4] = math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
         Q[5, 5] = nz.speed_scale_walk_per_sqrt_s**2 * dt
+        if self.primary is not None:
+            # first-order Gauss-Markov error of the beacon's own GPS
+            phi = math.exp(-dt / self._off_tau)
+            F[6, 6] = F[7, 7] = phi
+            Q[6, 6] = Q[7, 7] = self._off_std**2 * (1.0 - phi * phi)
         P = F @ self.P @ F.T + Q
         self.P = 0.5 * (P + P.T)
         self.t = t
@@ -167,11 +186,18 @@ class RangeEKF:
         lat, lon = float(self.x[0]), float(self.x[1])
         dn, de = self._displacement_since(m.t_ping)
         lat_p, lon_p = geodesy.offset_position(lat, lon, -dn, -de, m.vehicle_hd)
+        tracked = m.beacon == self.primary
+        b_lat, b_lon = m.beacon_lat, m.beacon_lon
+        if tracked:
+            # where the beacon really is: its report corrected by the estimated offset
+            b_lat, b_lon = geodesy.offset_position(
+                b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd
+            )
         r_back, gn_b, ge_b = geodesy.range_and_gradient(
-            lat, lon, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
+            lat, lon, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
         )
         r_out, gn_o, ge_o = geodesy.range_and_gradient(
-            lat_p, lon_p, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
+            lat_p, lon_p, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
         )
         lag = m.t - m.t_ping
         H = np.zeros(N_STATES)
@@ -180,11 +206,29 @@ class RangeEKF:
         # the ping end lies lag seconds of current drift behind the current estimate
         H[2] = -0.5 * lag * gn_o
         H[3] = -0.5 * lag * ge_o
+        if tracked:
+            # moving the beacon moves the range like moving the vehicle the other way
+            H[6] = -H[0]
+            H[7] = -H[1]
         return 0.5 * (r_out + r_back), H
 
+    def _track_beacon(self, m: RangeMeas) -> None:
+        """Adopt the first beacon heard as the one whose position error is estimated."""
+        if self.primary is not None or m.beacon_position_std_m <= 0.0:
+            return
+        self.primary = m.beacon
+        self._off_std = m.beacon_position_std_m
+        self._off_tau = m.beacon_position_corr_s
+        self.P[6, 6] = self.P[7, 7] = self._off_std**2
+        self.history.correct(self.x.copy(), self.P.copy())
+
     def range_update(self, m: RangeMeas) -> RangeDecision:
+        self._track_beacon(m)
         expected, H = self.predicted_range(m)
         r_var = m.std_m**2
+        if m.beacon != self.primary:
+            # another beacon's position error is not a state: count it as range noise
+            r_var += m.beacon_position_std_m**2
         residual = m.range_m - expected
         S = float(H @ self.P @ H) + r_var
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2

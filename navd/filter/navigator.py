@@ -291,7 +291,9 @@ class Navigator:
             beacon_lon=fix.lon,
             beacon_hd=h - fix.depth,
             vehicle_hd=h - self._depth,
-            std_m=self._range_std(fix.position_std_m),
+            std_m=self.nav.noise.range_std_m,
+            beacon_position_std_m=fix.position_std_m,
+            beacon_position_corr_s=fix.position_corr_s,
         )
         d: RangeDecision = self.filter.range_update(meas)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
@@ -299,13 +301,6 @@ class Navigator:
             self.counters[f"range_{d.reason}"] += 1
         out.update(accepted=d.accepted, residual_m=d.residual_m, gate_m=d.gate_m, reason=d.reason)
         return out
-
-    def _range_std(self, beacon_position_std_m: float) -> float:
-        # The thesis takes the range noise alone; the default filter adds the error
-        # of the position the beacon reported, which the range inherits along the
-        # line of sight.
-        r = self.nav.noise.range_std_m
-        return r if self.thesis else math.hypot(r, beacon_position_std_m)
 
     # -- outputs -----------------------------------------------------------------------
     def mode(self, t: float) -> str:
@@ -337,6 +332,8 @@ class Navigator:
         if not self.thesis and x is not None:
             r["heading_bias_deg"] = math.degrees(float(x[4]))
             r["speed_scale"] = float(x[5])
+            r["beacon_offset_n"] = float(x[6])
+            r["beacon_offset_e"] = float(x[7])
             heading += float(x[4])
             speed *= float(x[5])
         r["heading_deg"] = math.degrees(geodesy.wrap_lon(heading)) % 360.0
