@@ -61,3 +61,8 @@ def test_current_moves_the_vehicle() -> None:
     g = G.Inverse(first.lat, first.lon, last.lat, last.lon)
     assert g["s12"] / 50.0 == pytest.approx(0.32, abs=0.06)
     assert (g["azi1"] % 360) == pytest.approx(125.0, abs=10.0)
+
+
+def test_antimeridian_scenario_crosses_the_line() -> None:
+    lons = [s.lon for s in mission("antimeridian", 1).truth]
+    assert max(lons) > 179.99 and min(lons) < -179.99

@@ -65,6 +65,17 @@ class History:
         if self.enabled:
             self.steps.append(Step(t, F, x, P, x, P))
 
+    def widen(self, P: np.ndarray) -> None:
+        """Record covariance added outside a measurement (re-acquisition, a new prior).
+
+        To the smoother it is process noise of the latest step, so it goes into the
+        predicted covariance as well as the filtered one.
+        """
+        if self.enabled and self.steps:
+            s = self.steps[-1]
+            s.P_pred = s.P_pred + (P - s.P_filt)
+            s.P_filt = P
+
     def correct(self, x: object, P: np.ndarray) -> None:
         """Replace the filtered state of the latest step after an update."""
         if self.enabled and self.steps:

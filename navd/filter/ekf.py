@@ -220,7 +220,7 @@ class RangeEKF:
         self._off_std = m.beacon_position_std_m
         self._off_tau = m.beacon_position_corr_s
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
-        self.history.correct(self.x.copy(), self.P.copy())
+        self.history.widen(self.P.copy())
 
     def range_update(self, m: RangeMeas) -> RangeDecision:
         self._track_beacon(m)
@@ -260,7 +260,7 @@ class RangeEKF:
         self.P[3, 3] += cur_var
         self._recent.clear()
         self.reacquisitions += 1
-        self.history.correct(self.x.copy(), self.P.copy())
+        self.history.widen(self.P.copy())
 
     def _apply(self, dx: np.ndarray, hd: float) -> None:
         self.x = self.state_apply(self.x, dx, hd)
