@@ -1,0 +1,135 @@
+"""Keller PA-30X pressure transmitter: the Keller bus protocol (RS-485), sans-I/O.
+
+Frames (docs/protocols.md, "Keller"): a request is ``addr, function, [data], CRC16``
+and the answer repeats ``addr, function`` followed by its data and CRC16.  Used here:
+
+* F48 initialise: request ``addr 0x30 crc``; answer ``addr 0x30 class group year week
+  buffer state crc`` (10 bytes).
+* F73 read a float channel: request ``addr 0x49 channel crc``; answer ``addr 0x49 b3 b2 b1
+  b0 state crc`` (9 bytes, IEEE-754 big-endian).  Channel 1 is P1 in bar (absolute for
+  the PA-30X), channel 4 is TOB1, the sensor temperature in degrees C.
+* An exception answer is ``addr (function | 0x80) code crc`` (5 bytes).
+
+CRC16 is the Modbus polynomial (0xA001 reflected, initial 0xFFFF), sent high byte
+first by Keller devices; the decoder accepts either byte order because firmware
+documents have differed.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import deque
+from dataclasses import dataclass
+
+from drivers.codec import DecodeStats
+from navd.records import Pressure
+
+F_INIT = 48
+F_READ_FLOAT = 73
+CH_PRESSURE = 1
+CH_TEMPERATURE = 4
+_LENGTHS = {F_INIT: 10, F_READ_FLOAT: 9, F_INIT | 0x80: 5, F_READ_FLOAT | 0x80: 5}
+
+
+def crc16(data: bytes) -> int:
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc
+
+
+def _with_crc(body: bytes) -> bytes:
+    return body + crc16(body).to_bytes(2, "big")
+
+
+def encode_init(addr: int) -> bytes:
+    return _with_crc(bytes([addr, F_INIT]))
+
+
+def encode_read_float(addr: int, channel: int) -> bytes:
+    return _with_crc(bytes([addr, F_READ_FLOAT, channel]))
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceInfo:
+    t: float
+    device_class: int
+    group: int
+    year: int
+    week: int
+
+
+@dataclass(frozen=True, slots=True)
+class Temperature:
+    t: float
+    c: float
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceError:
+    t: float
+    function: int
+    code: int
+
+
+class KellerDecoder:
+    """Answers from one device address; channels of F73 answers are matched FIFO to requests."""
+
+    def __init__(self, addr: int = 250) -> None:
+        self.addr = addr
+        self.stats = DecodeStats()
+        self._buf = bytearray()
+        self._pending: deque[int] = deque(maxlen=16)
+
+    def request_init(self) -> bytes:
+        return encode_init(self.addr)
+
+    def request(self, channel: int) -> bytes:
+        self._pending.append(channel)
+        return encode_read_float(self.addr, channel)
+
+    def feed(self, data: bytes, t: float) -> list[object]:
+        self.stats.bytes_in += len(data)
+        self._buf += data
+        out: list[object] = []
+        buf = self._buf
+        while len(buf) >= 2:
+            if buf[0] != self.addr or buf[1] not in _LENGTHS:
+                self.stats.skip(1, "resync")
+                del buf[0]
+                continue
+            n = _LENGTHS[buf[1]]
+            if len(buf) < n:
+                break  # wait for the rest of the frame
+            frame = bytes(buf[:n])
+            crc = crc16(frame[:-2])
+            got = frame[-2:]
+            if got not in (crc.to_bytes(2, "big"), crc.to_bytes(2, "little")):
+                self.stats.bad_checksum += 1
+                self.stats.skip(1, "checksum")
+                del buf[0]  # the frame may have started later: slide by one byte
+                continue
+            del buf[:n]
+            rec = self._parse(frame, t)
+            if rec is not None:
+                out.append(rec)
+                self.stats.records += 1
+        return out
+
+    def _parse(self, f: bytes, t: float) -> object | None:
+        fn = f[1]
+        if fn & 0x80:
+            return DeviceError(t, fn & 0x7F, f[2])
+        if fn == F_INIT:
+            return DeviceInfo(t, f[2], f[3], f[4], f[5])
+        (value,) = struct.unpack(">f", f[2:6])
+        channel = self._pending.popleft() if self._pending else CH_PRESSURE
+        if value != value or abs(value) > 1e6:  # NaN or absurd: the sensor says nonsense
+            self.stats.bad_frame += 1
+            self.stats.reasons["bad_value"] = self.stats.reasons.get("bad_value", 0) + 1
+            return None
+        if channel == CH_TEMPERATURE:
+            return Temperature(t, value)
+        return Pressure(t, value)

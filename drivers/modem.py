@@ -1,0 +1,141 @@
+"""Teledyne Benthos ATM-903 acoustic modem in AT command mode, sans-I/O.
+
+navd asks the modem for the range to the UDB-9400 deck box with ``ATRX<addr>``
+("range and location", seed 000 section 4.1); the deck box answers with its
+position (latitude, longitude, depth) which the modem prints after the range.
+Replies are CR LF terminated text lines (docs/protocols.md, "Benthos"):
+
+    Range 1 to 2 : 153.4 m
+    Remote Lat: 37.0490112 Lon: -80.6670001 Depth: 3.0
+    OK
+
+A ping that gets no answer ends with ``Response Not Received`` (or ``Timeout``), a
+refused command with ``ERROR``.  Parsing is by pattern and tolerant of spacing,
+case and of the location line being absent or garbled (then the range is kept and
+its location left empty).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+from drivers.codec import DecodeStats
+
+_RANGE = re.compile(rb"range\s*(?:\d+\s*to\s*(\d+))?\s*[:=]\s*([0-9]+(?:\.[0-9]*)?)\s*m", re.I)
+_LOC = re.compile(
+    rb"lat\w*\s*[:=]\s*(-?[0-9.]+)\s*,?\s*lon\w*\s*[:=]\s*(-?[0-9.]+)"
+    rb"(?:\s*,?\s*depth\s*[:=]\s*(-?[0-9.]+))?",
+    re.I,
+)
+_NO_REPLY = re.compile(rb"response not received|timeout|timed out", re.I)
+_MAX_LINE = 200
+
+
+def encode_range(remote: int) -> bytes:
+    return f"ATRX{remote}\r".encode("ascii")
+
+
+def encode_command(cmd: str) -> bytes:
+    return (cmd.strip() + "\r").encode("ascii")
+
+
+@dataclass(frozen=True, slots=True)
+class ModemRange:
+    t: float
+    range_m: float
+    remote: int | None
+    lat: float | None = None
+    lon: float | None = None
+    depth: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class ModemReply:
+    """The end of a command: ``ok``, ``error`` or ``no_reply`` (the remote never answered)."""
+
+    t: float
+    status: str
+
+
+def _num(b: bytes | None, lo: float, hi: float) -> float | None:
+    if b is None:
+        return None
+    try:
+        v = float(b)
+    except ValueError:
+        return None
+    return v if math.isfinite(v) and lo <= v <= hi else None
+
+
+class ModemDecoder:
+    def __init__(self) -> None:
+        self.stats = DecodeStats()
+        self._buf = bytearray()
+        self._range: ModemRange | None = None
+
+    def feed(self, data: bytes, t: float) -> list[object]:
+        self.stats.bytes_in += len(data)
+        self._buf += data
+        out: list[object] = []
+        while True:
+            i = min(
+                (p for p in (self._buf.find(b"\r"), self._buf.find(b"\n")) if p >= 0), default=-1
+            )
+            if i < 0:
+                if len(self._buf) > _MAX_LINE:
+                    self.stats.skip(len(self._buf), "too_long")
+                    self.stats.bad_frame += 1
+                    self._buf.clear()
+                break
+            line = bytes(self._buf[:i]).strip()
+            del self._buf[: i + 1]
+            if line:
+                out.extend(self._line(line, t))
+        return out
+
+    def _flush(self) -> list[object]:
+        if self._range is None:
+            return []
+        r, self._range = self._range, None
+        self.stats.records += 1
+        return [r]
+
+    def _line(self, line: bytes, t: float) -> list[object]:
+        m = _RANGE.search(line)
+        if m:
+            out = self._flush()
+            rng = _num(m.group(2), 0.0, 1e5)
+            if rng is None:
+                self.stats.bad_frame += 1
+                self.stats.skip(len(line), "bad_range")
+                return out
+            remote = int(m.group(1)) if m.group(1) else None
+            self._range = ModemRange(t, rng, remote)
+            return out
+        m = _LOC.search(line)
+        if m:
+            if self._range is None:
+                self.stats.skip(len(line), "location_without_range")
+                return []
+            r = self._range
+            self._range = ModemRange(
+                r.t,
+                r.range_m,
+                r.remote,
+                _num(m.group(1), -90.0, 90.0),
+                _num(m.group(2), -180.0, 180.0),
+                _num(m.group(3), -100.0, 11000.0),
+            )
+            return self._flush()
+        if line.upper() == b"OK":
+            return [*self._flush(), ModemReply(t, "ok")]
+        if line.upper().startswith(b"ERROR"):
+            return [*self._flush(), ModemReply(t, "error")]
+        if _NO_REPLY.search(line):
+            return [*self._flush(), ModemReply(t, "no_reply")]
+        if line.upper().startswith(b"AT") or line == b">":
+            return []  # the modem's echo of our command, or its prompt
+        self.stats.skip(len(line), "unrecognised")
+        return []

@@ -1,0 +1,84 @@
+"""Microstrain 3DM-GX3-25: answers polls, streams Euler angles in continuous mode."""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+
+from hil.emulators.base import Emulator
+
+
+def _with_sum(body: bytes) -> bytes:
+    return body + struct.pack(">H", sum(body) & 0xFFFF)
+
+
+class AhrsEmulator(Emulator):
+    def __init__(self, path, seed: int = 0) -> None:
+        super().__init__(path, seed)
+        self.roll_deg = 0.0
+        self.pitch_deg = 0.0
+        self.yaw_deg = 0.0  # magnetic, as the device reports
+        self.decimation = 10  # 100 Hz until told otherwise
+        self.streaming = False
+        self._t0 = time.monotonic()
+        self._rx = bytearray()
+        self._stream_task = None
+
+    def _timer(self) -> int:
+        return int((time.monotonic() - self._t0) * 62_500) & 0xFFFFFFFF
+
+    def euler_frame(self) -> bytes:
+        yaw = math.radians(self.yaw_deg)
+        if yaw > math.pi:
+            yaw -= 2 * math.pi  # the device reports yaw in [-pi, pi]
+        body = bytes([0xCE]) + struct.pack(
+            ">fffI", math.radians(self.roll_deg), math.radians(self.pitch_deg), yaw, self._timer()
+        )
+        return _with_sum(body)
+
+    def on_bytes(self, data: bytes) -> None:
+        self._rx += data
+        while self._rx:
+            c = self._rx[0]
+            if c == 0xCE:
+                del self._rx[0]
+                self.reply(self.euler_frame())
+            elif c == 0xC4:
+                if len(self._rx) < 4:
+                    return
+                cmd = bytes(self._rx[:4])
+                del self._rx[:4]
+                if cmd[1:3] == b"\xc1\x29":
+                    self.reply(_with_sum(bytes([0xC4, cmd[3]]) + struct.pack(">I", self._timer())))
+                    self._start_stream()
+            elif c == 0xFA:
+                if len(self._rx) < 3:
+                    return
+                del self._rx[:3]
+                self.streaming = False
+            elif c == 0xDB:
+                if len(self._rx) < 20:
+                    return
+                cmd = bytes(self._rx[:20])
+                del self._rx[:20]
+                if cmd[1:3] == b"\xa8\xb9":
+                    if cmd[3] == 1:
+                        self.decimation = max(1, struct.unpack(">H", cmd[4:6])[0])
+                    self.reply(_with_sum(bytes([0xDB]) + cmd[4:20]))
+            else:
+                del self._rx[0]  # not a command the device knows: ignored
+
+    @property
+    def rate_hz(self) -> float:
+        return 1000.0 / self.decimation
+
+    def _start_stream(self) -> None:
+        self.streaming = True
+        if self._stream_task is None:
+            self.every(1.0 / self.rate_hz, self._tick)
+            self._stream_task = self._tasks[-1]
+
+    def _tick(self) -> None:
+        if self.streaming:
+            self.send(self.euler_frame())

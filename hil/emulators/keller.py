@@ -1,0 +1,64 @@
+"""Keller PA-30X on its RS-485 bus: answers F48 and F73 addressed to it."""
+
+from __future__ import annotations
+
+import struct
+
+from hil.emulators.base import Emulator
+
+
+def _crc(data: bytes) -> bytes:
+    # Keller bus CRC-16 (polynomial 0x8005 reflected = 0xA001, start 0xFFFF), high byte first
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            lsb = crc & 1
+            crc >>= 1
+            if lsb:
+                crc ^= 0xA001
+    return bytes([crc >> 8, crc & 0xFF])
+
+
+class KellerEmulator(Emulator):
+    def __init__(self, path, addr: int = 250, seed: int = 0) -> None:
+        super().__init__(path, seed)
+        self.addr = addr
+        self.pressure_bar = 1.01325
+        self.temperature_c = 12.0
+        self._rx = bytearray()
+
+    def on_bytes(self, data: bytes) -> None:
+        self._rx += data
+        while len(self._rx) >= 4:
+            if self._rx[0] != self.addr and self._rx[0] != 250:
+                del self._rx[0]
+                continue
+            fn = self._rx[1]
+            n = 5 if fn == 73 else 4
+            if len(self._rx) < n:
+                return
+            req = bytes(self._rx[:n])
+            if _crc(req[:-2]) != req[-2:]:
+                del self._rx[0]
+                continue
+            del self._rx[:n]
+            self._answer(fn, req)
+
+    def _answer(self, fn: int, req: bytes) -> None:
+        if fn == 48:
+            body = bytes([self.addr, 48, 5, 20, 16, 10, 0, 0])  # class 5, group 20, 2016 wk 10
+        elif fn == 73:
+            channel = req[2]
+            if channel == 1:
+                value = self.pressure_bar
+            elif channel == 4:
+                value = self.temperature_c
+            else:
+                body = bytes([self.addr, 73 | 0x80, 2])  # exception 2: invalid channel
+                self.reply(body + _crc(body))
+                return
+            body = bytes([self.addr, 73]) + struct.pack(">f", value) + bytes([0])
+        else:
+            body = bytes([self.addr, fn | 0x80, 1])  # exception 1: unknown function
+        self.reply(body + _crc(body), delay_s=0.005)

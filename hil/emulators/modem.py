@@ -1,0 +1,76 @@
+"""Benthos ATM-903 with a UDB-9400 at the far end: AT commands, ranging with location.
+
+``range_to(t)`` is supplied by whoever drives the emulator (the world simulator, or a
+test): given the time of the ping it returns ``(round_trip_s, range_m, lat, lon, depth)``
+of the deck box, or None when the ping is lost.  The answer is sent after the true
+round trip, as the modem prints it when the reply arrives.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+
+from hil.emulators.base import Emulator
+
+RangeFn = Callable[[float], tuple[float, float, float, float, float] | None]
+
+
+class ModemEmulator(Emulator):
+    def __init__(
+        self, path, range_to: RangeFn, own_addr: int = 1, seed: int = 0, timeout_s: float = 4.0
+    ) -> None:
+        super().__init__(path, seed)
+        self.range_to = range_to
+        self.own_addr = own_addr
+        self.timeout_s = timeout_s
+        self.corrupt_position = 0.0  # probability a location line arrives garbled
+        self.busy = False
+        self._rx = bytearray()
+
+    def on_bytes(self, data: bytes) -> None:
+        self._rx += data
+        while True:
+            i = self._rx.find(b"\r")
+            if i < 0:
+                if len(self._rx) > 256:
+                    self._rx.clear()
+                return
+            line = bytes(self._rx[:i]).strip().decode("ascii", "replace").upper()
+            del self._rx[: i + 1]
+            self._command(line)
+
+    def _command(self, line: str) -> None:
+        if not line:
+            return
+        if line == "AT":
+            self.reply(b"OK\r\n")
+        elif line.startswith("ATRX") or line.startswith("ATR"):
+            digits = line[4:] if line.startswith("ATRX") else line[3:]
+            if not digits.isdigit() or self.busy:
+                self.reply(b"ERROR\r\n")
+                return
+            self._ping(int(digits))
+        else:
+            self.reply(b"ERROR\r\n")
+
+    def _ping(self, remote: int) -> None:
+        self.busy = True
+        res = self.range_to(self.now())
+        if res is None:
+            self.reply(b"Response Not Received\r\n", delay_s=self.timeout_s)
+            self._free_after(self.timeout_s)
+            return
+        rtt, rng, lat, lon, depth = res
+        loc = f"Remote Lat: {lat:.7f} Lon: {lon:.7f} Depth: {depth:.1f}"
+        if self.corrupt_position and self.rng.random() < self.corrupt_position:
+            loc = loc.replace(".", "", 1)  # a dropped character garbles the latitude
+        text = f"Range {self.own_addr} to {remote} : {rng:.1f} m\r\n{loc}\r\nOK\r\n"
+        self.reply(text.encode("ascii"), delay_s=rtt)
+        self._free_after(rtt)
+
+    def _free_after(self, s: float) -> None:
+        def free() -> None:
+            self.busy = False
+
+        asyncio.get_running_loop().call_later(s, free)

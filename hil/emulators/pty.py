@@ -1,0 +1,75 @@
+"""A pseudo-terminal an emulator serves, behind a stable path that survives reconnects.
+
+The driver opens ``path`` (a symlink to the current /dev/pts/N) with pyserial exactly
+as it opens a USB serial adapter.  ``disconnect()`` closes the master side, which
+the driver sees as a hang-up; ``reconnect()`` opens a fresh pty behind the same path,
+as a re-enumerated USB device would appear again under its udev name.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import tty
+from collections.abc import Callable
+from pathlib import Path
+
+
+class PtyPort:
+    def __init__(self, path: str | Path, on_bytes: Callable[[bytes], None]) -> None:
+        self.path = Path(path)
+        self.on_bytes = on_bytes
+        self.master: int | None = None
+        self._slave: int | None = None
+        self.open()
+
+    def open(self) -> None:
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no line discipline: bytes pass as they are
+        os.set_blocking(master, False)
+        self.master, self._slave = master, slave
+        tmp = self.path.with_name(self.path.name + ".new")
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        tmp.symlink_to(os.ttyname(slave))
+        tmp.replace(self.path)
+        with contextlib.suppress(RuntimeError):
+            asyncio.get_running_loop().add_reader(master, self._readable)
+
+    def _readable(self) -> None:
+        if self.master is None:
+            return
+        try:
+            data = os.read(self.master, 4096)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            return  # nobody has the other side open
+        if data:
+            self.on_bytes(data)
+
+    def write(self, data: bytes) -> None:
+        if self.master is None:
+            return
+        with contextlib.suppress(BlockingIOError, OSError):
+            os.write(self.master, data)
+
+    def disconnect(self) -> None:
+        if self.master is None:
+            return
+        with contextlib.suppress(Exception):
+            asyncio.get_running_loop().remove_reader(self.master)
+        for fd in (self.master, self._slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)  # type: ignore[arg-type]
+        self.master = self._slave = None
+        with contextlib.suppress(FileNotFoundError):
+            self.path.unlink()
+
+    def reconnect(self) -> None:
+        self.disconnect()
+        self.open()
+
+    def close(self) -> None:
+        self.disconnect()

@@ -1,0 +1,168 @@
+"""Device codecs: golden byte vectors (with the document they come from), fuzzing, resync.
+
+The protocol sources are listed in docs/protocols.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers import ahrs, castle, gps, keller, modem
+from navd.records import Attitude, Gps, Pressure, Rpm
+
+# -- golden vectors -------------------------------------------------------------------
+# Keller bus protocol ("Communication protocol Serie 30", F48 example): initialise the
+# device at address 250 is FA 30 04 43 -- CRC-16/MODBUS, high byte first.
+KELLER_INIT_250 = bytes.fromhex("fa 30 04 43")
+# F73 channel 1 (P1) to address 250, and an answer of 1.5 bar with status 0.
+KELLER_READ_P1 = bytes.fromhex("fa 49 01 a1 a7")
+KELLER_P1_1_5_BAR = bytes.fromhex("fa 49 3f c0 00 00 00 53 67")
+# 3DM-GX3-25 single-byte protocol, 0xCE Euler angles: roll 10 deg, pitch -5 deg,
+# yaw -90 deg (radians, big-endian floats), timer 62500 ticks (1 s), checksum 0x092B.
+AHRS_EULER = bytes.fromhex("ce 3e 32 b8 c2 bd b2 b8 c2 bf c9 0f db 00 00 f4 24 09 2b")
+# NMEA 0183: the standard's textbook GGA and RMC examples (Munich, 23 March 1994).
+NMEA_GGA = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"
+NMEA_RMC = b"$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A\r\n"
+NMEA_NO_FIX = b"$GPGGA,000000.00,,,,,0,00,99.9,,M,,M,,*5F\r\n"
+# Castle Serial Link: read register 5 (speed); an answer of raw 1000 (0x03E8).
+CASTLE_READ_SPEED = bytes.fromhex("05 00 00 fb")
+CASTLE_RAW_1000 = bytes.fromhex("03 e8 15")
+MODEM_ATRX = (
+    b"Range 1 to 2 : 153.4 m\r\nRemote Lat: 37.0490112 Lon: -80.6670001 Depth: 3.0\r\nOK\r\n"
+)
+
+
+def test_keller_crc_is_crc16_modbus() -> None:
+    assert keller.crc16(b"123456789") == 0x4B37  # the CRC catalogue's check value
+
+
+def test_keller_golden() -> None:
+    assert keller.encode_init(250) == KELLER_INIT_250
+    d = keller.KellerDecoder(250)
+    assert d.request(keller.CH_PRESSURE) == KELLER_READ_P1
+    (rec,) = d.feed(KELLER_P1_1_5_BAR, 7.0)
+    assert rec == Pressure(7.0, 1.5)
+    # the same answer with its CRC bytes swapped (other firmware documents) also decodes
+    d.request(keller.CH_TEMPERATURE)
+    swapped = KELLER_P1_1_5_BAR[:-2] + KELLER_P1_1_5_BAR[-2:][::-1]
+    (temp,) = d.feed(swapped, 8.0)
+    assert temp == keller.Temperature(8.0, 1.5)
+
+
+def test_ahrs_golden() -> None:
+    (rec,) = ahrs.AhrsDecoder().feed(AHRS_EULER, 3.0)
+    assert rec.timer_s == pytest.approx(1.0)
+    att: Attitude = rec.attitude
+    assert att.roll_deg == pytest.approx(10.0, abs=1e-4)
+    assert att.pitch_deg == pytest.approx(-5.0, abs=1e-4)
+    assert att.yaw_deg == pytest.approx(270.0, abs=1e-4)  # -90 deg as a compass heading
+    assert ahrs.encode_continuous() == bytes.fromhex("c4 c1 29 ce")
+    assert ahrs.encode_stop() == bytes.fromhex("fa 75 b4")
+    assert len(ahrs.encode_sampling(50.0)) == 20
+
+
+def test_nmea_golden() -> None:
+    d = gps.NmeaDecoder()
+    fix, when = d.feed(NMEA_GGA + NMEA_RMC, 1.0)
+    assert fix.lat == pytest.approx(48.1173) and fix.lon == pytest.approx(11.516667, abs=1e-6)
+    assert fix.alt == pytest.approx(545.4 + 46.9)  # ellipsoidal: MSL plus geoid separation
+    assert fix.fix == 1 and fix.hdop == pytest.approx(0.9)
+    assert when.valid and when.utc.isoformat() == "1994-03-23T12:35:19+00:00"
+    (nofix,) = d.feed(NMEA_NO_FIX, 2.0)
+    assert nofix == Gps(2.0, None, None, None, 0, 99.9)
+
+
+def test_castle_golden() -> None:
+    d = castle.CastleDecoder(pole_pairs=1)
+    assert d.request_rpm() == CASTLE_READ_SPEED
+    (rec,) = d.feed(CASTLE_RAW_1000, 4.0)
+    assert isinstance(rec, Rpm)
+    assert rec.rpm == pytest.approx(1000 / 2042 * 20416.66)
+
+
+def test_modem_golden() -> None:
+    assert modem.encode_range(2) == b"ATRX2\r"
+    d = modem.ModemDecoder()
+    rng, ok = d.feed(MODEM_ATRX, 12.5)
+    assert rng == modem.ModemRange(12.5, 153.4, 2, 37.0490112, -80.6670001, 3.0)
+    assert ok == modem.ModemReply(12.5, "ok")
+    (lost,) = d.feed(b"Response Not Received\r\n", 20.0)
+    assert lost.status == "no_reply"
+    # a garbled location keeps the range and drops the position
+    out = d.feed(b"Range 1 to 2 : 99.0 m\r\nRemote Lat: 3704.90112 Lon: -80.66 Depth: 3\r\n", 30)
+    assert out[0].range_m == 99.0 and out[0].lat is None and out[0].lon == -80.66
+
+
+# -- fuzzing: random, truncated and spliced input -------------------------------------
+BINARY = [
+    (lambda: keller.KellerDecoder(250), KELLER_P1_1_5_BAR, "request"),
+    (ahrs.AhrsDecoder, AHRS_EULER, None),
+    (lambda: castle.CastleDecoder(), CASTLE_RAW_1000, "request_rpm"),
+]
+
+
+def _prime(dec, how: str | None, n: int) -> None:
+    for _ in range(n):
+        if how == "request":
+            dec.request(keller.CH_PRESSURE)
+        elif how == "request_rpm":
+            dec.request_rpm()
+
+
+@pytest.mark.parametrize("make,frame,how", BINARY)
+@given(garbage=st.binary(max_size=60), cut=st.integers(0, 40), chunk=st.integers(1, 7))
+@settings(max_examples=150, deadline=None)
+def test_binary_decoders_resync_and_count_every_byte(make, frame, how, garbage, cut, chunk):
+    dec = make()
+    # garbage, a truncated frame, then two good frames, fed in arbitrary chunks
+    stream = garbage + frame[: cut % len(frame)] + frame + frame
+    _prime(dec, how, 8)
+    recs = []
+    for i in range(0, len(stream), chunk):
+        recs += dec.feed(stream[i : i + chunk], 0.0)
+    assert len(recs) >= 1  # the last good frame is always found
+    s = dec.stats
+    assert s.bytes_in == len(stream)
+    assert s.skipped_bytes + s.records * len(frame) + len(dec._buf) == len(stream)
+
+
+@pytest.mark.parametrize(
+    "make", [gps.NmeaDecoder, modem.ModemDecoder, ahrs.AhrsDecoder, castle.CastleDecoder,
+             lambda: keller.KellerDecoder(250)]
+)
+@given(data=st.lists(st.binary(max_size=50), max_size=20))
+@settings(max_examples=150, deadline=None)
+def test_decoders_never_raise_on_random_input(make, data) -> None:
+    dec = make()
+    for chunk in data:
+        for rec in dec.feed(chunk, 1.0):
+            for v in getattr(rec, "__slots__", ()):
+                x = getattr(rec, v)
+                assert not (isinstance(x, float) and not math.isfinite(x))
+
+
+@given(garbage=st.binary(max_size=80).filter(lambda b: b"$" not in b), chunk=st.integers(1, 9))
+@settings(max_examples=150, deadline=None)
+def test_nmea_resyncs_after_garbage_and_counts_it(garbage: bytes, chunk: int) -> None:
+    dec = gps.NmeaDecoder()
+    bad = NMEA_GGA.replace(b"*47", b"*48")
+    stream = garbage + NMEA_GGA[:20] + bad + NMEA_GGA
+    recs = []
+    for i in range(0, len(stream), chunk):
+        recs += dec.feed(stream[i : i + chunk], 0.0)
+    assert [r.lat for r in recs] == [pytest.approx(48.1173)]
+    assert dec.stats.bad_checksum == 1
+    assert dec.stats.skipped_bytes == len(garbage) + 20 + len(bad)
+
+
+@given(garbage=st.binary(max_size=80).filter(lambda b: b"\r" not in b and b"\n" not in b))
+@settings(max_examples=100, deadline=None)
+def test_modem_resyncs_after_garbage(garbage: bytes) -> None:
+    dec = modem.ModemDecoder()
+    recs = dec.feed(garbage + b"\r\n" + MODEM_ATRX, 0.0)
+    ranges = [r for r in recs if isinstance(r, modem.ModemRange)]
+    assert ranges[-1].range_m == 153.4 and ranges[-1].lat == 37.0490112
