@@ -131,8 +131,14 @@ def test_binary_decoders_resync_and_count_every_byte(make, frame, how, garbage, 
 
 
 @pytest.mark.parametrize(
-    "make", [gps.NmeaDecoder, modem.ModemDecoder, ahrs.AhrsDecoder, castle.CastleDecoder,
-             lambda: keller.KellerDecoder(250)]
+    "make",
+    [
+        gps.NmeaDecoder,
+        modem.ModemDecoder,
+        ahrs.AhrsDecoder,
+        castle.CastleDecoder,
+        lambda: keller.KellerDecoder(250),
+    ],
 )
 @given(data=st.lists(st.binary(max_size=50), max_size=20))
 @settings(max_examples=150, deadline=None)
