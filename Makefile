@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test lint demo bench-accuracy bench-replay clean
+.PHONY: test lint demo bench-accuracy bench-replay bench-decode clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -31,6 +31,9 @@ bench-accuracy: $(STAMP)
 
 bench-replay: $(STAMP)
 	$(BIN)/python -m bench.replay_speed --write BENCHMARKS.md
+
+bench-decode: $(STAMP)
+	$(BIN)/python -m bench.decode_speed --write BENCHMARKS.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

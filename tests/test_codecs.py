@@ -172,3 +172,54 @@ def test_modem_resyncs_after_garbage(garbage: bytes) -> None:
     recs = dec.feed(garbage + b"\r\n" + MODEM_ATRX, 0.0)
     ranges = [r for r in recs if isinstance(r, modem.ModemRange)]
     assert ranges[-1].range_m == 153.4 and ranges[-1].lat == 37.0490112
+
+
+# -- the emulators produce the same golden bytes ----------------------------------------
+def test_emulators_speak_the_golden_vectors(tmp_path) -> None:
+    import asyncio
+
+    from hil.emulators import ahrs as ahrs_emu
+    from hil.emulators import castle as castle_emu
+    from hil.emulators import gps as gps_emu
+    from hil.emulators import keller as keller_emu
+    from hil.emulators import modem as modem_emu
+
+    assert keller_emu._crc(b"\xfa\x30") == KELLER_INIT_250[2:]
+    assert gps_emu.sentence("GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,") == (
+        NMEA_GGA
+    )
+
+    async def main() -> None:
+        sent: list[bytes] = []
+        k = keller_emu.KellerEmulator(tmp_path / "k", addr=250)
+        k.pressure_bar = 1.5
+        k.send = sent.append  # capture what goes on the line
+        k.on_bytes(KELLER_READ_P1)
+        await asyncio.sleep(0.05)
+        assert sent == [KELLER_P1_1_5_BAR]
+
+        a = ahrs_emu.AhrsEmulator(tmp_path / "a")
+        a.roll_deg, a.pitch_deg, a.yaw_deg = 10.0, -5.0, 270.0
+        a._timer = lambda: 62500
+        assert a.euler_frame() == AHRS_EULER
+
+        sent.clear()
+        c = castle_emu.CastleEmulator(tmp_path / "c")
+        c.rpm = 1000 * 20416.66 / 2042
+        c.send = sent.append
+        c.on_bytes(CASTLE_READ_SPEED)
+        await asyncio.sleep(0.05)
+        assert sent == [CASTLE_RAW_1000]
+
+        sent.clear()
+        m = modem_emu.ModemEmulator(
+            tmp_path / "m", lambda t: (0.01, 153.4, 37.0490112, -80.6670001, 3.0)
+        )
+        m.send = sent.append
+        m.on_bytes(b"ATRX2\r")
+        await asyncio.sleep(0.1)
+        assert sent == [MODEM_ATRX]
+        for e in (k, a, c, m):
+            e.close()
+
+    asyncio.run(main())
