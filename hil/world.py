@@ -55,6 +55,7 @@ class Mission:
     records: list[Record]
     pings: int
     replies: int
+    channel: AcousticChannel
 
 
 def _wrap_deg(a: float) -> float:
@@ -198,91 +199,114 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         bve += rng.normal(0.0, b.wander_mps)
         boat_lat, boat_lon = _offset(boat_lat, boat_lon, bvn * dt, bve * dt)
 
-    pings, replies, acoustic = _acoustics(sc, rng, truth, boat_gps, transducer, dt)
+    channel = AcousticChannel(sc, rng, truth, boat_gps, transducer, dt)
+    pings, replies, acoustic = _acoustics(channel)
     records.extend(acoustic)
     records.sort(key=lambda r: r.t)  # stable: sensor order within an instant is kept
-    return Mission(sc, seed, truth, records, pings, replies)
+    return Mission(sc, seed, truth, records, pings, replies, channel)
 
 
-def _acoustics(
-    sc: Scenario,
-    rng: np.random.Generator,
-    truth: list[TruthSample],
-    boat_gps: list[tuple[float, float]],
-    transducer: list[tuple[float, float]],
-    dt: float,
-) -> tuple[int, int, list[Record]]:
-    a = sc.acoustics
-    h0 = sc.surface_altitude_m
-    c_water = coppens(
-        a.temperature_c, a.salinity_ppt, 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m)
-    )
-    n = len(truth)
-    t_end = (n - 1) * dt
+class AcousticChannel:
+    """The acoustic link between the vehicle's modem and the deck box's transducer.
 
-    def vehicle_at(t: float) -> np.ndarray:
-        i = min(n - 2, max(0, int(t / dt)))
-        w = (t - i * dt) / dt
-        p0, p1 = truth[i], truth[i + 1]
-        return (1 - w) * _ecef(p0.lat, p0.lon, h0 - p0.depth) + w * _ecef(
-            p1.lat, p1.lon, h0 - p1.depth
+    ``ping(t_ping)`` answers what the modem would print for a ping sent at ``t_ping``:
+    a :class:`Range` stamped with the arrival of the reply, or None when the ping is
+    lost.  It uses the precomputed truth, so the offline simulator and the real-time
+    modem emulator hear the same channel.  The deck box reports the position its GPS
+    gave at the last whole second (the shore laptop updates it at 1 Hz over COM1).
+    """
+
+    def __init__(
+        self,
+        sc: Scenario,
+        rng: np.random.Generator,
+        truth: list[TruthSample],
+        boat_gps: list[tuple[float, float]],
+        transducer: list[tuple[float, float]],
+        dt: float,
+    ) -> None:
+        a = sc.acoustics
+        self.sc, self.a, self.rng = sc, a, rng
+        self.truth, self.boat_gps, self.transducer, self.dt = truth, boat_gps, transducer, dt
+        self.h0 = sc.surface_altitude_m
+        self.c_water = coppens(
+            a.temperature_c, a.salinity_ppt, 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m)
+        )
+        # Gilbert-Elliott drops: bad state entered with p_gb, left with p_bg = 1/burst.
+        self.p_bg = 1.0 / a.drop_burst_pings
+        frac = min(a.drop_prob, 0.95)
+        self.p_gb = frac * self.p_bg / max(1e-9, 1.0 - frac)
+        self.bad = False
+        self.t_end = (len(truth) - 1) * dt
+
+    def _index(self, t: float) -> tuple[int, float]:
+        i = min(len(self.truth) - 2, max(0, int(t / self.dt)))
+        return i, (t - i * self.dt) / self.dt
+
+    def vehicle_at(self, t: float) -> np.ndarray:
+        i, w = self._index(t)
+        p0, p1 = self.truth[i], self.truth[i + 1]
+        return (1 - w) * _ecef(p0.lat, p0.lon, self.h0 - p0.depth) + w * _ecef(
+            p1.lat, p1.lon, self.h0 - p1.depth
         )
 
-    def transducer_at(t: float) -> np.ndarray:
-        i = min(n - 2, max(0, int(t / dt)))
-        w = (t - i * dt) / dt
-        (la0, lo0), (la1, lo1) = transducer[i], transducer[i + 1]
-        hd = h0 - sc.boat.transducer_depth_m
+    def transducer_at(self, t: float) -> np.ndarray:
+        i, w = self._index(t)
+        (la0, lo0), (la1, lo1) = self.transducer[i], self.transducer[i + 1]
+        hd = self.h0 - self.sc.boat.transducer_depth_m
         return (1 - w) * _ecef(la0, lo0, hd) + w * _ecef(la1, lo1, hd)
 
-    # Gilbert-Elliott drops: bad state entered with p_gb, left with p_bg = 1/burst.
-    p_bg = 1.0 / a.drop_burst_pings
-    frac = min(a.drop_prob, 0.95)
-    p_gb = frac * p_bg / max(1e-9, 1.0 - frac)
-    bad = False
+    def ping(self, t_ping: float) -> Range | None:
+        a, rng, c = self.a, self.rng, self.c_water
+        self.bad = (rng.random() >= self.p_bg) if self.bad else (rng.random() < self.p_gb)
+        if self.bad:
+            return None
+        pv = self.vehicle_at(t_ping)
+        tb = t_ping
+        for _ in range(4):  # out leg: the beacon hears the ping at tb
+            tb = t_ping + float(np.linalg.norm(self.transducer_at(tb) - pv)) / c
+        pb = self.transducer_at(tb)
+        tr = tb + a.turnaround_s
+        for _ in range(4):  # back leg: the vehicle hears the reply at tr
+            tr = tb + a.turnaround_s + float(np.linalg.norm(self.vehicle_at(tr) - pb)) / c
+        if tr - t_ping > a.timeout_s:
+            return None
+        m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
+        m += rng.normal(0.0, a.range_noise_m)
+        if rng.random() < a.multipath_prob:
+            m += rng.exponential(a.multipath_mean_m)
+        i = min(len(self.boat_gps) - 1, int(math.floor(tb)) * round(1.0 / self.dt))
+        blat, blon = self.boat_gps[i]
+        bdepth: float | None = self.sc.boat.transducer_depth_m
+        if rng.random() < a.corrupt_position_prob:
+            kind = rng.integers(3)
+            if kind == 0:  # a garbled digit: hundreds of metres to kilometres off
+                blat += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
+            elif kind == 1:
+                blon += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
+            else:  # the position field missing from the reply
+                blat = blon = None  # type: ignore[assignment]
+                bdepth = None
+        return Range(
+            round(tr, 6),
+            round(t_ping, 6),
+            round(max(0.0, m), 3),
+            "udb",
+            blat,
+            None if blon is None else _wrap_deg(blon),
+            bdepth,
+        )
+
+
+def _acoustics(channel: AcousticChannel) -> tuple[int, int, list[Record]]:
+    a = channel.a
     out: list[Record] = []
-    pings = replies = 0
+    pings = 0
     t_ping = a.ping_interval_s
-    while t_ping < t_end - a.timeout_s:
+    while t_ping < channel.t_end - a.timeout_s:
         pings += 1
-        bad = (rng.random() >= p_bg) if bad else (rng.random() < p_gb)
-        if not bad:
-            pv = vehicle_at(t_ping)
-            tb = t_ping
-            for _ in range(4):  # out leg: the beacon hears the ping at tb
-                tb = t_ping + float(np.linalg.norm(transducer_at(tb) - pv)) / c_water
-            pb = transducer_at(tb)
-            tr = tb + a.turnaround_s
-            for _ in range(4):  # back leg: the vehicle hears the reply at tr
-                tr = tb + a.turnaround_s + float(np.linalg.norm(vehicle_at(tr) - pb)) / c_water
-            if tr - t_ping <= a.timeout_s:
-                replies += 1
-                m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
-                m += rng.normal(0.0, a.range_noise_m)
-                if rng.random() < a.multipath_prob:
-                    m += rng.exponential(a.multipath_mean_m)
-                i = min(n - 1, int(round(tb / dt)))
-                blat, blon = boat_gps[i]
-                bdepth: float | None = sc.boat.transducer_depth_m
-                if rng.random() < a.corrupt_position_prob:
-                    kind = rng.integers(3)
-                    if kind == 0:  # a garbled digit: hundreds of metres to kilometres off
-                        blat += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
-                    elif kind == 1:
-                        blon += float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.05))
-                    else:  # the position field missing from the reply
-                        blat = blon = None  # type: ignore[assignment]
-                        bdepth = None
-                out.append(
-                    Range(
-                        round(tr, 6),
-                        round(t_ping, 6),
-                        round(max(0.0, m), 3),
-                        "udb",
-                        blat,
-                        None if blon is None else _wrap_deg(blon),
-                        bdepth,
-                    )
-                )
+        r = channel.ping(t_ping)
+        if r is not None:
+            out.append(r)
         t_ping += a.ping_interval_s
-    return pings, replies, out
+    return pings, len(out), out

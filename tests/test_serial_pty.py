@@ -183,3 +183,42 @@ def test_modem_ranges_after_the_round_trip_and_reports_silence(tmp_path: Path) -
         emu.close()
 
     asyncio.run(main())
+
+
+def test_modem_emulator_hears_the_world_channel(tmp_path: Path) -> None:
+    """The deck box answers with the simulated boat's position after the true round trip."""
+    from conftest import mission
+
+    from hil.link import modem_range_fn
+    from hil.world import simulate
+
+    m = simulate(mission("claytor-2", 5).scenario, 5)  # a private copy: its channel is used
+    ch = m.channel
+    ch.p_gb, ch.bad = 0.0, False  # no drops for this test
+    asked: list[float] = []
+
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        t0 = loop.time() - 100.0  # mission time 100 s is now
+        fn = modem_range_fn(m, t0)
+        emu = ModemEmulator(tmp_path / "modem", lambda t: (asked.append(t), fn(t))[1])
+        got: list = []
+        tr = SerialTransport(str(emu.path), 9600, modem.ModemDecoder(), got.append)
+        tr.start()
+        await _until(lambda: tr.health.connected)
+        state = ch.rng.bit_generator.state
+        sent = loop.time()
+        tr.write(modem.encode_range(2))
+        await _until(lambda: any(isinstance(r, modem.ModemReply) for r in got))
+        (r,) = [x for x in got if isinstance(x, modem.ModemRange)]
+        ch.rng.bit_generator.state = state  # replay the same draw offline
+        ch.bad = False
+        want = ch.ping(asked[0] - t0)
+        assert r.range_m == pytest.approx(want.m, abs=0.051)
+        if want.beacon_lat is not None:
+            assert r.lat == pytest.approx(want.beacon_lat, abs=1e-7)
+        assert r.t - sent >= want.t - want.t_ping - 0.01  # not before the true round trip
+        await tr.stop()
+        emu.close()
+
+    asyncio.run(main())

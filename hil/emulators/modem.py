@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 from hil.emulators.base import Emulator
 
-RangeFn = Callable[[float], tuple[float, float, float, float, float] | None]
+RangeFn = Callable[[float], tuple[float, float, float | None, float | None, float | None] | None]
 
 
 class ModemEmulator(Emulator):
@@ -62,10 +62,12 @@ class ModemEmulator(Emulator):
             self._free_after(self.timeout_s)
             return
         rtt, rng, lat, lon, depth = res
-        loc = f"Remote Lat: {lat:.7f} Lon: {lon:.7f} Depth: {depth:.1f}"
-        if self.corrupt_position and self.rng.random() < self.corrupt_position:
-            loc = loc.replace(".", "", 1)  # a dropped character garbles the latitude
-        text = f"Range {self.own_addr} to {remote} : {rng:.1f} m\r\n{loc}\r\nOK\r\n"
+        loc = ""
+        if lat is not None and lon is not None:  # the deck box may send no position
+            loc = f"Remote Lat: {lat:.7f} Lon: {lon:.7f} Depth: {depth or 0.0:.1f}\r\n"
+            if self.corrupt_position and self.rng.random() < self.corrupt_position:
+                loc = loc.replace(".", "", 1)  # a dropped character garbles the latitude
+        text = f"Range {self.own_addr} to {remote} : {rng:.1f} m\r\n{loc}OK\r\n"
         self.reply(text.encode("ascii"), delay_s=rtt)
         self._free_after(rtt)
 

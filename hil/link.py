@@ -1,0 +1,24 @@
+"""Driving the device emulators from the world simulator in real time.
+
+Mission time is ``clock() - t0``; each emulator reads the world at that time.  Only
+the modem link lives here so far; the full bench runner that moves every emulator
+along a mission comes with the daemon (issue 4).
+"""
+
+from __future__ import annotations
+
+from hil.world import Mission
+
+
+def modem_range_fn(mission: Mission, t0: float):
+    """A ``range_to`` for :class:`hil.emulators.modem.ModemEmulator` from the mission's channel."""
+
+    def range_to(
+        t_mono: float,
+    ) -> tuple[float, float, float | None, float | None, float | None] | None:
+        r = mission.channel.ping(t_mono - t0)
+        if r is None:
+            return None
+        return r.t - r.t_ping, r.m, r.beacon_lat, r.beacon_lon, r.beacon_depth
+
+    return range_to
