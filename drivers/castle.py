@@ -30,8 +30,11 @@ def encode_read(register: int) -> bytes:
 
 
 class CastleDecoder:
-    def __init__(self, pole_pairs: int = 1) -> None:
+    def __init__(self, pole_pairs: int = 1, max_rpm: float = 20_000.0) -> None:
         self.pole_pairs = pole_pairs
+        # Answers have no header and a one-byte check: after line noise, one window in 256
+        # passes the check by chance.  A propeller speed no motor can reach marks it.
+        self.max_rpm = max_rpm
         self.stats = DecodeStats()
         self._buf = bytearray()
         self._pending: deque[int] = deque(maxlen=8)
@@ -59,7 +62,11 @@ class CastleDecoder:
             register = self._pending.popleft()
             raw = int.from_bytes(frame[:2], "big")
             if register == REG_SPEED:
-                erpm = raw / _RAW_FULL * SPEED_SCALE
-                out.append(Rpm(t, erpm / self.pole_pairs))
+                rpm = raw / _RAW_FULL * SPEED_SCALE / self.pole_pairs
+                if rpm > self.max_rpm:
+                    self.stats.bad_frame += 1
+                    self.stats.skip(3, "implausible")
+                    continue
+                out.append(Rpm(t, rpm))
                 self.stats.records += 1
         return out

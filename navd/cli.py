@@ -45,6 +45,39 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    import asyncio
+    import logging
+    import signal
+
+    from navd.app import Daemon
+    from navd.config import check_for_run
+    from navd.publish import Publisher
+
+    cfg = load_config(args.config)
+    check_for_run(cfg)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+
+    def publisher(loop, on_command):
+        return Publisher(cfg.zenoh, cfg.vehicle.name, loop, on_command)
+
+    async def main() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, stop.set)
+        await Daemon(cfg, publisher_factory=publisher).run(stop)
+
+    asyncio.run(main())
+    return 0
+
+
+def _cmd_watch(args: argparse.Namespace) -> int:
+    from navd.watch import watch
+
+    return watch(load_config(args.config), args.count, args.seconds, args.every)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="navd", description="AUV navigation daemon and tools")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -63,6 +96,17 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--log", help="the measurement log (for GPS fixes)")
     rep.add_argument("--out", required=True, help="directory for the figures and summary")
     rep.set_defaults(func=_cmd_report)
+
+    run = sub.add_parser("run", help="run the daemon on the vehicle's serial devices")
+    run.add_argument("--config", required=True)
+    run.set_defaults(func=_cmd_run)
+
+    w = sub.add_parser("watch", help="print the live estimate published over zenoh")
+    w.add_argument("--config", help="the daemon's config (vehicle name, zenoh endpoints)")
+    w.add_argument("--count", type=int, help="stop after this many estimates")
+    w.add_argument("--seconds", type=float, help="stop after this long")
+    w.add_argument("--every", type=float, default=1.0, help="print at most every N s (0: all)")
+    w.set_defaults(func=_cmd_watch)
 
     c = sub.add_parser("check-config", help="validate a configuration file and explain it")
     c.add_argument("file")

@@ -127,10 +127,83 @@ class SiteConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class SerialPortConfig:
+    port: str = ""  # e.g. /dev/navd-ahrs (udev name); required by navd run when enabled
+    baudrate: int = _num(9600, lo=300, hi=4_000_000)
+    enabled: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class AhrsDevice(SerialPortConfig):
+    baudrate: int = _num(115200, lo=300, hi=4_000_000)
+    rate_hz: float = _num(50.0, gt=0.0, hi=1000.0)
+
+
+@dataclass(frozen=True, slots=True)
+class PolledDevice(SerialPortConfig):
+    poll_hz: float = _num(10.0, gt=0.0, hi=100.0)
+    address: int = _num(1, lo=0, hi=255)  # Keller bus address
+    pole_pairs: int = _num(1, lo=1, hi=64)  # motor pole pairs (Castle eRPM to RPM)
+
+
+@dataclass(frozen=True, slots=True)
+class ModemDevice(SerialPortConfig):
+    remote_address: int = _num(2, lo=0, hi=255)  # the UDB-9400's modem address
+    beacon: str = "udb"  # the beacon name its ranges carry
+    ping_interval_s: float = _num(10.0, gt=0.0)
+    reply_timeout_s: float = _num(8.0, gt=0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class DevicesConfig:
+    ahrs: AhrsDevice = field(default_factory=AhrsDevice)
+    gps: SerialPortConfig = field(default_factory=SerialPortConfig)
+    pressure: PolledDevice = field(default_factory=PolledDevice)
+    motor: PolledDevice = field(default_factory=PolledDevice)
+    modem: ModemDevice = field(default_factory=ModemDevice)
+
+
+@dataclass(frozen=True, slots=True)
+class ZenohConfig:
+    mode: Literal["peer", "client"] = "peer"
+    listen: list[str] = field(default_factory=lambda: ["tcp/127.0.0.1:7447"])
+    connect: list[str] = field(default_factory=list)
+    config_file: str | None = None  # a zenoh JSON5 file; the keys above then override it
+    multicast_scouting: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class LogConfig:
+    dir: str = "navd-log"
+    rotate_mb: float = _num(64.0, gt=0.0)
+    fsync_s: float = _num(1.0, gt=0.0)
+    raw_bytes: bool = True  # also log every byte off the serial ports
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleConfig:
+    name: str = "690s"
+
+
+@dataclass(frozen=True, slots=True)
 class Config:
     navigation: NavigationConfig = field(default_factory=NavigationConfig)
     beacons: dict[str, Beacon] = field(default_factory=dict)
     site: SiteConfig = field(default_factory=SiteConfig)
+    vehicle: VehicleConfig = field(default_factory=VehicleConfig)
+    devices: DevicesConfig = field(default_factory=DevicesConfig)
+    zenoh: ZenohConfig = field(default_factory=ZenohConfig)
+    log: LogConfig = field(default_factory=LogConfig)
+
+
+def check_for_run(cfg: Config) -> None:
+    """What ``navd run`` needs beyond a valid file: a port for every enabled device."""
+    for name in ("ahrs", "gps", "pressure", "motor", "modem"):
+        dev = getattr(cfg.devices, name)
+        if dev.enabled and not dev.port:
+            raise ConfigError(f"devices.{name}.port: required by navd run (or enabled: false)")
+    if not cfg.vehicle.name.replace("-", "").replace("_", "").isalnum():
+        raise ConfigError("vehicle.name: letters, digits, - and _ only (it is a zenoh key)")
 
 
 def _fail(path: str, msg: str) -> typing.NoReturn:

@@ -30,6 +30,8 @@ from navd.records import (
 )
 
 FORMAT = "navd-measurements"
+#: what the daemon's own log holds besides measurements; replay passes over them
+LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "event"})
 MAX_ABS_T = 1e9  # about 30 years of seconds: beyond it a time stamp is corrupt, not a mission
 VERSION = 1
 
@@ -178,6 +180,8 @@ def iter_lines(
                 obj = json.loads(line)
             except (json.JSONDecodeError, RecursionError) as exc:
                 raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
+            if isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
+                continue
             rec = parse_record(obj)
             if rec.t < last_t:
                 raise ValueError(f"t={rec.t:g} goes back in time (previous {last_t:g})")

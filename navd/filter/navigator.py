@@ -15,7 +15,7 @@ from typing import Any
 
 from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
-from navd.config import Config
+from navd.config import Beacon, Config
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import NavFilter, RangeDecision, RangeMeas
 from navd.filter.deadreckoning import DeadReckoner
@@ -95,7 +95,7 @@ class Navigator:
         if self._t_filter is not None and t - self._t_filter > self.nav.max_gap_s:
             # Nothing heard for that long: the old estimate means nothing, and filling
             # the gap with ticks could mean millions of them.  Start over at the next fix.
-            self._restart()
+            self.restart("after_gap")
         out = self._ticks_until(t, inclusive=False)
         self._propagate_to(t)
         handler = _HANDLERS.get(type(rec))
@@ -107,8 +107,9 @@ class Navigator:
             out.append(decision)
         return out
 
-    def _restart(self) -> None:
-        self.counters["restarts_after_gap"] += 1
+    def restart(self, reason: str) -> None:
+        """Forget the estimate and start again at the next GPS fix."""
+        self.counters[f"restarts_{reason}"] += 1
         enabled = self.filter.history.enabled
         if enabled:
             self._smoothed_done.extend(self._smooth_segment())
@@ -119,6 +120,10 @@ class Navigator:
         self._tick_k = None
         self._t_filter = None
         self._t_gps = None
+
+    def set_beacon(self, name: str, beacon: Beacon) -> None:
+        """Use this fixed position for ``name`` where replies carry none."""
+        self.beacons.beacons = {**self.beacons.beacons, name: beacon}
 
     def advance(self, t: float) -> list[dict[str, Any]]:
         """Run the ticks up to and including ``t`` (the daemon's clock, or the end of a log)."""

@@ -1,0 +1,185 @@
+"""``navd-hil SCENARIO --dir DIR``: the emulated vehicle, in real time, on pseudo-terminals.
+
+Starts one emulator per device behind stable paths in DIR (``ahrs``, ``gps``,
+``pressure``, ``motor``, ``modem``), writes ``DIR/navd.yaml`` (the crew's config with
+those ports, a loopback zenoh endpoint and a log directory) and moves the emulators
+along the simulated mission: compass, RPM, pressure and GPS from the simulated
+sensors at their times, ranges from the acoustic channel when navd pings.  The truth
+goes to ``DIR/truth.jsonl``; ``DIR/clock.json`` says which monotonic time was mission
+time zero.  Faults can be scheduled with ``--faults FILE`` (YAML list of
+``{t, device, action, value}``; actions: reconnect, disconnect, garbage, checksum,
+truncate, stall, unstall, drop_replies, gps_off, gps_on).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import signal
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from hil.emulators.ahrs import AhrsEmulator
+from hil.emulators.castle import CastleEmulator
+from hil.emulators.gps import GpsEmulator
+from hil.emulators.keller import KellerEmulator
+from hil.emulators.modem import ModemEmulator
+from hil.link import modem_range_fn
+from hil.scenario import load_scenario
+from hil.sim_cli import crew_config, deep_merge
+from hil.world import simulate
+from navd.config import ConfigError, config_from_dict
+from navd.records import Depth, Gps, Heading, Rpm
+
+_GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under
+
+
+def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, Any]:
+    return deep_merge(
+        crew,
+        {
+            "vehicle": {"name": "sim690s"},
+            "devices": {
+                "ahrs": {"port": str(d / "ahrs"), "rate_hz": 50},
+                "gps": {"port": str(d / "gps")},
+                "pressure": {"port": str(d / "pressure"), "address": 1},
+                "motor": {"port": str(d / "motor")},
+                "modem": {"port": str(d / "modem"), "remote_address": 2, "beacon": "udb"},
+            },
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{zenoh_port}"]},
+            "log": {"dir": str(d / "log")},
+        },
+    )
+
+
+class Bench:
+    def __init__(self, scenario: str, seed: int, d: Path, zenoh_port: int, speed: float = 1.0):
+        self.sc = load_scenario(scenario)
+        self.mission = simulate(self.sc, seed)
+        self.dir = d
+        self.speed = speed
+        d.mkdir(parents=True, exist_ok=True)
+        crew = crew_config(self.sc)
+        cfg = daemon_config(crew, d, zenoh_port)
+        config_from_dict(cfg)
+        self.site = config_from_dict(cfg).site
+        (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
+        with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
+            for s in self.mission.truth:
+                fh.write(json.dumps(asdict(s), separators=(",", ":")) + "\n")
+
+    def _pressure(self, depth: float) -> float:
+        s = self.site
+        return s.surface_pressure_bar + s.water_density_kgm3 * s.gravity_mps2 * depth / 1e5
+
+    async def run(self, stop: asyncio.Event, faults: list[dict[str, Any]]) -> None:
+        d = self.dir
+        self.t0 = time.monotonic()
+        (d / "clock.json").write_text(json.dumps({"t0_monotonic": self.t0, "speed": self.speed}))
+        emus = {
+            "ahrs": AhrsEmulator(d / "ahrs", seed=1),
+            "gps": GpsEmulator(d / "gps", seed=2),
+            "pressure": KellerEmulator(d / "pressure", addr=1, seed=3),
+            "motor": CastleEmulator(d / "motor", seed=4),
+            "modem": ModemEmulator(d / "modem", modem_range_fn(self.mission, self.t0), seed=5),
+        }
+        gps_emu: GpsEmulator = emus["gps"]  # type: ignore[assignment]
+        gps_emu.start()
+        gps_off = False
+        last_fix = -1e9
+        pending = sorted(faults, key=lambda f: f["t"])
+        try:
+            for rec in self.mission.records:
+                while pending and pending[0]["t"] <= rec.t:
+                    f = pending.pop(0)
+                    gps_off = self._fault(emus, f, gps_off)
+                delay = self.t0 + rec.t / self.speed - time.monotonic()
+                if delay > 0:
+                    try:
+                        await asyncio.wait_for(stop.wait(), delay)
+                        return
+                    except TimeoutError:
+                        pass
+                if isinstance(rec, Heading):
+                    emus["ahrs"].yaw_deg = rec.deg  # type: ignore[attr-defined]
+                elif isinstance(rec, Rpm):
+                    emus["motor"].rpm = rec.rpm  # type: ignore[attr-defined]
+                elif isinstance(rec, Depth):
+                    emus["pressure"].pressure_bar = self._pressure(rec.m)  # type: ignore[attr-defined]
+                elif isinstance(rec, Gps):
+                    if rec.fix and not gps_off:
+                        gps_emu.lat, gps_emu.lon, gps_emu.alt_msl = rec.lat, rec.lon, rec.alt or 0.0
+                        gps_emu.hdop = rec.hdop or 1.0
+                        last_fix = rec.t
+                    else:
+                        gps_emu.lat = gps_emu.lon = None
+                if rec.t - last_fix > _GPS_HOLD_S:
+                    gps_emu.lat = gps_emu.lon = None
+            await stop.wait()
+        finally:
+            for e in emus.values():
+                e.close()
+
+    @staticmethod
+    def _fault(emus: dict[str, Any], f: dict[str, Any], gps_off: bool) -> bool:
+        e = emus[f["device"]]
+        action, value = f["action"], f.get("value", 0.0)
+        if action == "reconnect":
+            e.port.reconnect()
+        elif action == "disconnect":
+            e.port.disconnect()
+        elif action in ("garbage", "bad_checksum", "truncate", "drop_reply"):
+            setattr(e.faults, action, float(value))
+        elif action == "stall":
+            e.faults.stalled = True
+        elif action == "unstall":
+            e.faults.stalled = False
+        elif action == "gps_off":
+            return True
+        elif action == "gps_on":
+            return False
+        else:
+            raise ConfigError(f"faults: unknown action {action!r}")
+        return gps_off
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="navd-hil", description=__doc__.splitlines()[0])
+    p.add_argument("scenario")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--dir", required=True)
+    p.add_argument("--zenoh-port", type=int, default=7447)
+    p.add_argument("--faults", help="YAML list of scheduled faults")
+    p.add_argument("--speed", type=float, default=1.0)
+    args = p.parse_args(argv)
+    try:
+        faults = yaml.safe_load(Path(args.faults).read_text()) if args.faults else []
+        bench = Bench(args.scenario, args.seed, Path(args.dir), args.zenoh_port, args.speed)
+    except (ConfigError, OSError, yaml.YAMLError) as exc:
+        print(f"navd-hil: {exc}", file=sys.stderr)
+        return 2
+
+    async def amain() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, stop.set)
+        await bench.run(stop, faults)
+
+    print(
+        f"navd-hil: {bench.sc.name} on {args.dir} ({bench.mission.truth[-1].t:.0f} s)",
+        file=sys.stderr,
+        flush=True,
+    )
+    asyncio.run(amain())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

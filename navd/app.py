@@ -1,0 +1,387 @@
+"""``navd run``: the daemon the vehicle runs.
+
+One asyncio task per serial device (drivers/transport.py), a 10 Hz filter tick on
+absolute monotonic deadlines, a ping scheduler (``ATRX`` every ``ping_interval_s``,
+never two outstanding, a reply timeout), a 1 Hz health task, zenoh publishing and
+the crash-safe log.  Every measurement is stamped with the monotonic time its bytes
+arrived and fed to the same :class:`~navd.filter.Navigator` that ``navd replay``
+runs, so the log replays to the same estimates.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime as dt
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from drivers import ahrs, castle, gps, keller, modem
+from drivers.codec import DecodeStats
+from drivers.transport import SerialTransport
+from navd.config import Beacon, Config
+from navd.filter import Navigator
+from navd.log import RecordLog
+from navd.records import Gps, Pressure, Range, Rpm
+from navd.sdnotify import Notifier
+
+log = logging.getLogger("navd")
+
+
+class _Logged:
+    """A decoder wrapper that logs the raw bytes before decoding them."""
+
+    def __init__(self, name: str, inner: Any, rlog: RecordLog) -> None:
+        self.name, self.inner, self.rlog = name, inner, rlog
+
+    @property
+    def stats(self) -> DecodeStats:
+        return self.inner.stats
+
+    def feed(self, data: bytes, t: float) -> list[object]:
+        self.rlog.raw_bytes(t, self.name, data)
+        return self.inner.feed(data, t)
+
+
+@dataclass(slots=True)
+class DeviceState:
+    name: str
+    transport: SerialTransport | None = None
+    decoder: Any = None
+    records: int = 0
+    recent: deque[float] = field(default_factory=lambda: deque(maxlen=2000))
+
+
+def _percentile(xs: list[float], q: float) -> float | None:
+    if not xs:
+        return None
+    s = sorted(xs)
+    return s[min(len(s) - 1, int(q * len(s)))]
+
+
+class Daemon:
+    def __init__(
+        self,
+        cfg: Config,
+        clock: Callable[[], float] = time.monotonic,
+        notifier: Notifier | None = None,
+        publisher_factory: Callable[..., Any] | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.clock = clock
+        self.notifier = notifier or Notifier()
+        self.nav = Navigator(cfg)
+        self.rlog = RecordLog(cfg.log.dir, cfg.log.rotate_mb, cfg.log.raw_bytes)
+        self.publisher_factory = publisher_factory
+        self.pub: Any = None
+        self.devices: dict[str, DeviceState] = {}
+        self.dt = 1.0 / cfg.navigation.rate_hz
+        self.tick_lateness: deque[float] = deque(maxlen=6000)
+        self.publish_latency: deque[float] = deque(maxlen=6000)
+        self.overruns = 0
+        self.ticks = 0
+        self.ping_t: float | None = None
+        self.pings = {
+            "sent": 0,
+            "ranges": 0,
+            "no_reply": 0,
+            "timeouts": 0,
+            "errors": 0,
+            "skipped_busy": 0,
+            "skipped_port_down": 0,
+        }
+        self.latest: dict[str, Any] | None = None
+        self.gps_utc: dt.datetime | None = None
+        self.temperature_c: float | None = None
+        self.events: deque[str] = deque(maxlen=20)
+        self._last_watchdog = -math.inf
+
+    # -- records in ------------------------------------------------------------------
+    def feed(self, rec: Any) -> None:
+        """A measurement, stamped with its arrival, to the log and the filter."""
+        self.rlog.record(rec)
+        self._outputs(self.nav.feed(rec))
+
+    def _outputs(self, outs: list[dict[str, Any]]) -> None:
+        for o in outs:
+            self.rlog.output(o)
+            if o["type"] == "estimate":
+                self._publish_estimate(o)
+            elif self.pub is not None:
+                self.pub.put("range", o)
+
+    def _publish_estimate(self, est: dict[str, Any]) -> None:
+        body = dict(est)
+        body["t_mono"] = body.pop("t")
+        body["t_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+        self.latest = body
+        if self.pub is not None:
+            self.pub.put("estimate", body)
+        self.publish_latency.append(self.clock() - est["t"])
+
+    def _on_record(self, name: str) -> Callable[[object], None]:
+        state = self.devices[name]
+
+        def handle(rec: object) -> None:
+            state.records += 1
+            state.recent.append(self.clock())
+            if isinstance(rec, ahrs.Euler):
+                self.feed(rec.attitude)
+            elif isinstance(rec, Gps | Pressure | Rpm):
+                self.feed(rec)
+            elif isinstance(rec, gps.GpsTime):
+                self.gps_utc = rec.utc
+            elif isinstance(rec, keller.Temperature):
+                self.temperature_c = rec.c
+            elif isinstance(rec, modem.ModemRange):
+                self._on_range(rec)
+            elif isinstance(rec, modem.ModemReply):
+                self._on_modem_reply(rec)
+
+        return handle
+
+    def _on_range(self, r: modem.ModemRange) -> None:
+        if self.ping_t is None:
+            self.pings["errors"] += 1  # a range we did not ask for
+            return
+        m = self.cfg.devices.modem
+        self.pings["ranges"] += 1
+        t_ping, self.ping_t = self.ping_t, None
+        self.feed(Range(r.t, t_ping, r.range_m, m.beacon, r.lat, r.lon, r.depth))
+
+    def _on_modem_reply(self, r: modem.ModemReply) -> None:
+        # "OK" follows a range, which already closed the ping; silence or an error close it
+        if r.status in ("no_reply", "error"):
+            self.pings[r.status if r.status == "no_reply" else "errors"] += 1
+            self.ping_t = None
+
+    # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
+    def on_command(self, name: str, body: dict[str, Any]) -> None:
+        t = self.clock()
+        if name == "reset":
+            self.nav.restart("command")
+            self.rlog.event(t, "reset to next GPS fix", **body)
+        elif name == "beacon":
+            b = Beacon(lat=body["lat"], lon=body["lon"], depth=body.get("depth", 0.0))
+            self.nav.set_beacon(body["name"], b)
+            self.rlog.event(t, "beacon position set", **body)
+        self.events.append(f"{name} {body}")
+
+    # -- tasks -------------------------------------------------------------------------
+    def _start_devices(self) -> None:
+        d = self.cfg.devices
+        specs: list[tuple[str, Any, Any, Callable[[SerialTransport], None] | None]] = []
+        if d.ahrs.enabled:
+
+            def ahrs_open(tr: SerialTransport, rate: float = d.ahrs.rate_hz) -> None:
+                tr.write(ahrs.encode_stop())
+                tr.write(ahrs.encode_sampling(rate))
+                tr.write(ahrs.encode_continuous())
+
+            specs.append(("ahrs", d.ahrs, ahrs.AhrsDecoder(), ahrs_open))
+        if d.gps.enabled:
+            specs.append(("gps", d.gps, gps.NmeaDecoder(), None))
+        if d.pressure.enabled:
+            kd = keller.KellerDecoder(d.pressure.address)
+            specs.append(
+                ("pressure", d.pressure, kd, lambda tr, kd=kd: tr.write(kd.request_init()))
+            )
+        if d.motor.enabled:
+            specs.append(("motor", d.motor, castle.CastleDecoder(d.motor.pole_pairs), None))
+        if d.modem.enabled:
+            specs.append(("modem", d.modem, modem.ModemDecoder(), None))
+        for name, dev, dec, on_open in specs:
+            self.devices[name] = DeviceState(name, decoder=dec)
+            tr = SerialTransport(
+                dev.port,
+                dev.baudrate,
+                _Logged(name, dec, self.rlog),
+                self._on_record(name),
+                on_open=on_open,
+                clock=self.clock,
+            )
+            self.devices[name].transport = tr
+            tr.start()
+
+    async def _poller(self, name: str, hz: float, request: Callable[[], bytes]) -> None:
+        period = 1.0 / hz
+        nxt = self.clock()
+        while True:
+            nxt += period
+            await asyncio.sleep(max(0.0, nxt - self.clock()))
+            tr = self.devices[name].transport
+            if tr is not None and tr.health.connected:
+                tr.write(request())
+
+    async def _pinger(self) -> None:
+        m = self.cfg.devices.modem
+        while True:
+            await asyncio.sleep(m.ping_interval_s)
+            now = self.clock()
+            if self.ping_t is not None:
+                if now - self.ping_t < m.reply_timeout_s:
+                    self.pings["skipped_busy"] += 1
+                    continue
+                self.pings["timeouts"] += 1  # the modem never closed the last ping
+                self.ping_t = None
+            tr = self.devices["modem"].transport
+            if tr is None or not tr.health.connected:
+                self.pings["skipped_port_down"] += 1
+                continue
+            self.ping_t = self.clock()
+            if tr.write(modem.encode_range(m.remote_address)):
+                self.pings["sent"] += 1
+            else:
+                self.ping_t = None
+
+    async def _ticker(self) -> None:
+        dt_ = self.dt
+        k = math.ceil(self.clock() / dt_)
+        while True:
+            deadline = k * dt_
+            delay = deadline - self.clock()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            now = self.clock()
+            late = now - deadline
+            self.tick_lateness.append(late)
+            if late > dt_:
+                self.overruns += 1
+                k = math.floor(now / dt_)  # catch up: the navigator emits every missed tick
+            self._outputs(self.nav.advance(k * dt_))
+            self.ticks += 1
+            if (
+                self.notifier.watchdog_s
+                and now - self._last_watchdog >= self.notifier.watchdog_s / 2
+            ):
+                self.notifier.watchdog()  # from the loop itself: a hung loop stops these
+                self._last_watchdog = now
+            k += 1
+
+    async def _health(self) -> None:
+        while True:
+            await asyncio.sleep(1.0)
+            m = self.cfg.devices.modem
+            if self.ping_t is not None and self.clock() - self.ping_t > m.reply_timeout_s:
+                self.pings["timeouts"] += 1
+                self.ping_t = None
+            h = self.health()
+            self.rlog.output({"type": "health", **h})
+            self.rlog.sync()
+            if self.pub is not None:
+                self.pub.put("health", h)
+
+    def health(self) -> dict[str, Any]:
+        now = self.clock()
+        devices = {}
+        for name, st in self.devices.items():
+            hl = st.transport.health if st.transport else None
+            stats = st.decoder.stats
+            rate = sum(1 for x in st.recent if now - x <= 5.0) / 5.0
+            devices[name] = {
+                "connected": bool(hl and hl.connected),
+                "last_rx_age_s": None
+                if not hl or hl.last_rx is None
+                else round(now - hl.last_rx, 3),
+                "rate_hz": rate,
+                "records": st.records,
+                "bad_checksum": stats.bad_checksum,
+                "bad_frame": stats.bad_frame,
+                "skipped_bytes": stats.skipped_bytes,
+                "reconnects": hl.reconnects if hl else 0,
+                "last_error": hl.last_error if hl else "",
+            }
+        lat = list(self.tick_lateness)
+        est = self.latest or {}
+        degraded = [s for s in est.get("stale", [])]
+        degraded += [f"{n} disconnected" for n, d in devices.items() if not d["connected"]]
+        if self.rlog.degraded and self.rlog.errors:
+            degraded.append("log")
+        return {
+            "t_mono": now,
+            "mode": est.get("mode", "waiting_for_gps"),
+            "ok": not degraded,
+            "degraded": degraded,
+            "devices": devices,
+            "pings": dict(self.pings),
+            "filter": dict(self.nav.counters),
+            "ticks": self.ticks,
+            "tick_overruns": self.overruns,
+            "tick_lateness_ms": {
+                "p50": _ms(_percentile(lat, 0.5)),
+                "p99": _ms(_percentile(lat, 0.99)),
+                "max": _ms(max(lat) if lat else None),
+            },
+            "log": {
+                "file": str(self.rlog.path) if self.rlog.path else None,
+                "ok": not (self.rlog.degraded and self.rlog.errors),
+                "lines": self.rlog.lines,
+                "errors": self.rlog.errors,
+                "dropped": self.rlog.dropped,
+                "last_error": self.rlog.last_error,
+            },
+            "zenoh": None
+            if self.pub is None
+            else {
+                "errors": self.pub.errors,
+                "commands": dict(self.pub.commands),
+            },
+            "temperature_c": self.temperature_c,
+        }
+
+    async def run(self, stop: asyncio.Event) -> None:
+        loop = asyncio.get_running_loop()
+        if self.publisher_factory is not None:
+            self.pub = self.publisher_factory(loop, self.on_command)
+        self._start_devices()
+        d = self.cfg.devices
+        tasks = [loop.create_task(self._ticker()), loop.create_task(self._health())]
+        if d.pressure.enabled:
+            kd = self.devices["pressure"].decoder
+            tasks.append(
+                loop.create_task(
+                    self._poller(
+                        "pressure", d.pressure.poll_hz, lambda: kd.request(keller.CH_PRESSURE)
+                    )
+                )
+            )
+        if d.motor.enabled:
+            cd = self.devices["motor"].decoder
+            tasks.append(loop.create_task(self._poller("motor", d.motor.poll_hz, cd.request_rpm)))
+        if d.modem.enabled:
+            tasks.append(loop.create_task(self._pinger()))
+        # READY once the ports are open (or 5 s have shown which are not) and the loop ticks
+        t_end = self.clock() + 5.0
+        while self.clock() < t_end and not all(
+            s.transport and s.transport.health.connected for s in self.devices.values()
+        ):
+            await asyncio.sleep(0.05)
+        down = [
+            n for n, s in self.devices.items() if not (s.transport and s.transport.health.connected)
+        ]
+        self.notifier.ready("navigating" + (f"; not open: {', '.join(down)}" if down else ""))
+        log.info("navd running; devices not open: %s", down or "none")
+        try:
+            await stop.wait()
+        finally:
+            self.notifier.stopping()
+            for t in tasks:
+                t.cancel()
+            for t in tasks:
+                with contextlib.suppress(asyncio.CancelledError):
+                    await t
+            for s in self.devices.values():
+                if s.transport:
+                    await s.transport.stop()
+            if self.pub is not None:
+                self.pub.close()
+            self.rlog.close()
+
+
+def _ms(x: float | None) -> float | None:
+    return None if x is None else round(x * 1000.0, 3)

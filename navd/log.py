@@ -1,0 +1,130 @@
+"""The daemon's append-only, crash-safe, size-rotated log.
+
+Every measurement record fed to the filter (stamped with its monotonic arrival
+time), every raw byte off a serial port, every estimate and range decision goes
+into JSON Lines files that are a measurement log v1 (header ``time_base:
+monotonic``), so ``navd replay`` reads them as they are.  Each line is written
+whole and flushed at once, so a ``kill -9`` loses nothing the process had logged;
+``fsync`` every ``fsync_s`` bounds what a power cut can lose.  A full or failing
+disk degrades logging (counted, said in health) and never stops navigation.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+from navd.mlog import FORMAT, VERSION, record_to_json
+from navd.records import Record
+
+_RETRY_AFTER_S = 10.0
+
+
+class RecordLog:
+    def __init__(self, directory: str | Path, rotate_mb: float = 64.0, raw: bool = True) -> None:
+        self.dir = Path(directory)
+        self.rotate_bytes = int(rotate_mb * 1024 * 1024)
+        self.raw = raw
+        self.fh: TextIO | None = None
+        self.path: Path | None = None
+        self.size = 0
+        self.files = 0
+        self.lines = 0
+        self.errors = 0
+        self.dropped = 0
+        self.last_error = ""
+        self._retry_at = 0.0
+        self._dumps = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
+
+    @property
+    def degraded(self) -> bool:
+        return self.fh is None
+
+    def _open(self) -> None:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        now = dt.datetime.now(dt.UTC)
+        self.files += 1
+        self.path = self.dir / f"navd-{now:%Y%m%dT%H%M%S}-{os.getpid()}-{self.files:03d}.jsonl"
+        fh = self.path.open("a", encoding="utf-8", buffering=1)
+        header = {
+            "format": FORMAT,
+            "version": VERSION,
+            "start_utc": now.strftime("%Y-%m-%dT%H:%M:%S.%fZ"),
+            "time_base": "monotonic",
+            "start_monotonic": time.monotonic(),
+        }
+        line = json.dumps(header) + "\n"
+        fh.write(line)
+        fh.flush()
+        self.fh, self.size = fh, len(line)
+
+    def _write(self, obj: dict[str, Any]) -> None:
+        if self.fh is None:
+            if time.monotonic() < self._retry_at:
+                self.dropped += 1
+                return
+            try:
+                self._open()
+            except OSError as exc:
+                self._fail(exc)
+                self.dropped += 1
+                return
+        try:
+            line = self._dumps(obj) + "\n"
+            self.fh.write(line)  # type: ignore[union-attr]
+            self.fh.flush()  # type: ignore[union-attr]
+        except (OSError, ValueError) as exc:
+            self._fail(exc)
+            self.dropped += 1
+            return
+        self.lines += 1
+        self.size += len(line)
+        if self.size >= self.rotate_bytes:
+            self.close()
+
+    def _fail(self, exc: Exception) -> None:
+        self.errors += 1
+        self.last_error = f"{exc.__class__.__name__}: {exc}"
+        self._retry_at = time.monotonic() + _RETRY_AFTER_S
+        if self.fh is not None:
+            with contextlib.suppress(OSError):
+                self.fh.close()
+        self.fh = None
+
+    def record(self, rec: Record) -> None:
+        self._write(record_to_json(rec))
+
+    def raw_bytes(self, t: float, device: str, data: bytes) -> None:
+        if self.raw:
+            self._write({"type": "raw", "t": t, "device": device, "hex": data.hex()})
+
+    def output(self, out: dict[str, Any]) -> None:
+        # filter outputs are logged under their own names so the log stays a measurement log
+        kind = "decision" if out.get("type") == "range" else out.get("type", "output")
+        self._write({**out, "type": kind})
+
+    def event(self, t: float, text: str, **fields: Any) -> None:
+        self._write({"type": "event", "t": t, "text": text, **fields})
+
+    def sync(self) -> None:
+        if self.fh is None:
+            return
+        try:
+            os.fsync(self.fh.fileno())
+        except OSError as exc:
+            self._fail(exc)
+
+    def close(self) -> None:
+        if self.fh is not None:
+            try:
+                self.fh.flush()
+                os.fsync(self.fh.fileno())
+                self.fh.close()
+            except OSError:
+                pass
+        self.fh = None
