@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test lint demo bench-accuracy bench-replay bench-decode clean
+.PHONY: test lint demo bench-accuracy bench-replay bench-decode bench-daemon clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -21,10 +21,9 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check navd drivers hil tests bench
 
-# Until the daemon lands (issue 4), the demo simulates a Claytor Lake mission,
-# replays it through the filter and writes the mission report.
+# The daemon on the emulated vehicle (about two minutes), watched live, then reported.
 demo: $(STAMP)
-	$(BIN)/python -m bench.demo
+	$(BIN)/python -m hil.demo
 
 bench-accuracy: $(STAMP)
 	$(BIN)/python -m bench.accuracy --seeds 5 --write BENCHMARKS.md
@@ -34,6 +33,9 @@ bench-replay: $(STAMP)
 
 bench-decode: $(STAMP)
 	$(BIN)/python -m bench.decode_speed --write BENCHMARKS.md
+
+bench-daemon: $(STAMP)
+	$(BIN)/python -m bench.daemon_perf --seconds 600 --write BENCHMARKS.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -46,7 +46,7 @@ def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, A
         {
             "vehicle": {"name": "sim690s"},
             "devices": {
-                "ahrs": {"port": str(d / "ahrs"), "rate_hz": 50},
+                "ahrs": {"port": str(d / "ahrs"), "rate_hz": 20},
                 "gps": {"port": str(d / "gps")},
                 "pressure": {"port": str(d / "pressure"), "address": 1},
                 "motor": {"port": str(d / "motor")},

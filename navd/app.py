@@ -31,6 +31,7 @@ from navd.records import Gps, Pressure, Range, Rpm
 from navd.sdnotify import Notifier
 
 log = logging.getLogger("navd")
+LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
 
 
 class _Logged:
@@ -263,6 +264,16 @@ class Daemon:
                 self._last_watchdog = now
             k += 1
 
+    async def _log_flusher(self) -> None:
+        last_sync = self.clock()
+        while True:
+            await asyncio.sleep(LOG_FLUSH_S)
+            if self.clock() - last_sync >= self.cfg.log.fsync_s:
+                self.rlog.sync()
+                last_sync = self.clock()
+            else:
+                self.rlog.flush()
+
     async def _health(self) -> None:
         while True:
             await asyncio.sleep(1.0)
@@ -272,7 +283,6 @@ class Daemon:
                 self.ping_t = None
             h = self.health()
             self.rlog.output({"type": "health", **h})
-            self.rlog.sync()
             if self.pub is not None:
                 self.pub.put("health", h)
 
@@ -317,6 +327,11 @@ class Daemon:
                 "p99": _ms(_percentile(lat, 0.99)),
                 "max": _ms(max(lat) if lat else None),
             },
+            # from the tick's deadline to the estimate handed to zenoh
+            "publish_latency_ms": {
+                "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
+                "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
+            },
             "log": {
                 "file": str(self.rlog.path) if self.rlog.path else None,
                 "ok": not (self.rlog.degraded and self.rlog.errors),
@@ -340,7 +355,11 @@ class Daemon:
             self.pub = self.publisher_factory(loop, self.on_command)
         self._start_devices()
         d = self.cfg.devices
-        tasks = [loop.create_task(self._ticker()), loop.create_task(self._health())]
+        tasks = [
+            loop.create_task(self._ticker()),
+            loop.create_task(self._health()),
+            loop.create_task(self._log_flusher()),
+        ]
         if d.pressure.enabled:
             kd = self.devices["pressure"].decoder
             tasks.append(

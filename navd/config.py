@@ -122,6 +122,8 @@ class SiteConfig:
     name: str = "unnamed"
     water_density_kgm3: float = _num(1000.0, lo=990.0, hi=1050.0)
     surface_pressure_bar: float = _num(1.01325, lo=0.8, hi=1.2)
+    # take the surface pressure from readings while GPS has a fix (before each dive)
+    surface_pressure_from_gps: bool = True
     gravity_mps2: float = _num(9.80665, lo=9.7, hi=9.9)
     surface_altitude_m: float | None = _num(None, lo=-200.0, hi=5000.0)  # type: ignore[arg-type]
 
@@ -136,7 +138,7 @@ class SerialPortConfig:
 @dataclass(frozen=True, slots=True)
 class AhrsDevice(SerialPortConfig):
     baudrate: int = _num(115200, lo=300, hi=4_000_000)
-    rate_hz: float = _num(50.0, gt=0.0, hi=1000.0)
+    rate_hz: float = _num(20.0, gt=0.0, hi=1000.0)  # twice the filter rate
 
 
 @dataclass(frozen=True, slots=True)

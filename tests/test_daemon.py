@@ -140,7 +140,7 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     # health tells the truth: everything connected, nothing degraded
     last = m.health[-1]
     assert all(d["connected"] for d in last["devices"].values())
-    assert last["devices"]["ahrs"]["rate_hz"] == pytest.approx(50.0, rel=0.1)
+    assert last["devices"]["ahrs"]["rate_hz"] == pytest.approx(20.0, rel=0.1)
 
     # position against the simulator's truth, within the filter's own 3 sigma
     truth = {round(s["t"], 1): s for s in read_jsonl(mission_dir / "truth.jsonl")}

@@ -206,3 +206,18 @@ def test_long_silence_restarts_at_the_next_fix() -> None:
     assert not [o for o in est if 2.0 < o["t"] < 3600.5]
     assert nav.counters["restarts_after_gap"] == 1
     assert est[-1]["lat"] == pytest.approx(37.06, abs=1e-6)
+
+
+def test_depth_from_pressure_zeroed_at_the_surface() -> None:
+    """Pressure read while GPS has a fix is the surface; depth is measured from it."""
+    from navd.config import config_from_dict
+    from navd.filter import Navigator
+    from navd.records import Gps, Pressure
+
+    nav = Navigator(config_from_dict({"site": {"water_density_kgm3": 1000.0}}))
+    for k in range(10):  # a high-pressure day: 1.030 bar at the surface
+        nav.feed(Gps(k * 0.1, 37.05, -80.66, 0.0, 1))
+        nav.feed(Pressure(k * 0.1 + 0.05, 1.030))
+    out = nav.feed(Pressure(10.0, 1.030 + 0.0980665))  # 1 m of fresh water, GPS long gone
+    out += nav.advance(10.0)
+    assert out[-1]["depth"] == pytest.approx(1.0, abs=1e-6)

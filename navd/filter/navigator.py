@@ -10,7 +10,8 @@ and every tick, so when a record falls between ticks does not change the answer.
 from __future__ import annotations
 
 import math
-from collections import Counter
+import statistics
+from collections import Counter, deque
 from typing import Any
 
 from navd import geodesy
@@ -81,6 +82,7 @@ class Navigator:
         self._t_gps_streak = -math.inf
         self._tick_steps: list[tuple[int, dict[str, Any]]] = []
         self._smoothed_done: list[dict[str, Any]] = []
+        self._p_surface: deque[float] = deque(maxlen=50)
 
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
@@ -207,11 +209,12 @@ class Navigator:
 
     def _on_pressure(self, rec: Pressure) -> None:
         site = self.cfg.site
-        self._depth = (
-            (rec.bar - site.surface_pressure_bar)
-            * 1e5
-            / (site.water_density_kgm3 * site.gravity_mps2)
-        )
+        if site.surface_pressure_from_gps and self._gps_fresh(rec.t):
+            # GPS has a fix, so the vehicle is at the surface: this is the zero of depth
+            # (weather and sensor offset included), measured before every dive
+            self._p_surface.append(rec.bar)
+        p0 = statistics.median(self._p_surface) if self._p_surface else site.surface_pressure_bar
+        self._depth = (rec.bar - p0) * 1e5 / (site.water_density_kgm3 * site.gravity_mps2)
 
     def _on_velocity(self, rec: Velocity) -> None:
         self.counters["velocity_unused"] += 1  # DVL fusion is not part of the range filter
