@@ -190,6 +190,8 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
 def test_faults_on_every_port_and_the_daemon_keeps_navigating(mission_dir: Path) -> None:
     faults = [
         {"t": 12, "device": "gps", "action": "gps_off"},  # GPS drops out at the surface
+        {"t": 15, "device": "modem", "action": "garbage", "value": 0.3},
+        {"t": 28, "device": "modem", "action": "garbage", "value": 0.0},
         {"t": 20, "device": "gps", "action": "gps_on"},
         {"t": 33, "device": "ahrs", "action": "reconnect"},  # the AHRS port vanishes
         {"t": 35, "device": "modem", "action": "drop_reply", "value": 1.0},  # UDB silent
