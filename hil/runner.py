@@ -67,8 +67,7 @@ class Bench:
         d.mkdir(parents=True, exist_ok=True)
         crew = crew_config(self.sc)
         cfg = daemon_config(crew, d, zenoh_port)
-        config_from_dict(cfg)
-        self.site = config_from_dict(cfg).site
+        self.site = config_from_dict(cfg).site  # also proves the generated config valid
         (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
         with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
             for s in self.mission.truth:

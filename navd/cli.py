@@ -16,7 +16,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from navd.replay import replay
 
     cfg = load_config(args.config)
-    replay(args.input, cfg, args.out, smooth=args.smooth, strict=args.strict)
+    replay(list(args.input), cfg, args.out, smooth=args.smooth, strict=args.strict)
     return 0
 
 
@@ -83,7 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", required=True)
 
     r = sub.add_parser("replay", help="run the navigation filter over a recorded log")
-    r.add_argument("input", help="measurement log (JSON Lines, navd-measurements v1)")
+    r.add_argument(
+        "input",
+        nargs="+",
+        help="measurement log (JSON Lines, navd-measurements v1); the files of a rotated "
+        "daemon log may be given in order",
+    )
     r.add_argument("--config", help="configuration YAML (defaults if omitted)")
     r.add_argument("--out", required=True, help="output JSON Lines")
     r.add_argument("--smooth", action="store_true", help="add an RTS smoothing pass")

@@ -46,21 +46,27 @@ def write_outputs(outputs: list[dict[str, Any]], fh: IO[str]) -> None:
 
 
 def replay(
-    input_path: str | Path,
+    input_path: str | Path | list[str | Path],
     cfg: Config,
     out_path: str | Path,
     smooth: bool = False,
     strict: bool = False,
     err: IO[str] = sys.stderr,
 ) -> ReplayResult:
-    log = read_measurement_log(input_path, strict=strict)
-    for s in log.skipped[:MAX_REPORTED_SKIPS]:
-        print(f"{input_path}: line {s.line}: skipped: {s.reason}", file=err)
-    if len(log.skipped) > MAX_REPORTED_SKIPS:
-        print(
-            f"{input_path}: ... {len(log.skipped) - MAX_REPORTED_SKIPS} more lines skipped",
-            file=err,
-        )
+    """Replay one log, or the consecutive files of a rotated daemon log, as one mission."""
+    paths = input_path if isinstance(input_path, list) else [input_path]
+    log = MeasurementLog({}, [], [])
+    for path in paths:
+        part = read_measurement_log(path, strict=strict)
+        log.header = log.header or part.header
+        log.records.extend(part.records)
+        log.skipped.extend(part.skipped)
+        for s in part.skipped[:MAX_REPORTED_SKIPS]:
+            print(f"{path}: line {s.line}: skipped: {s.reason}", file=err)
+        if len(part.skipped) > MAX_REPORTED_SKIPS:
+            print(
+                f"{path}: ... {len(part.skipped) - MAX_REPORTED_SKIPS} more lines skipped", file=err
+            )
     result = run_navigator(log, cfg, smooth)
     for w in result.warnings:
         print(f"warning: {w}", file=err)

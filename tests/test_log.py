@@ -26,6 +26,22 @@ def test_rotates_by_size_and_every_file_is_a_measurement_log(tmp_path: Path) -> 
     assert all(not h.skipped for h in heads)
     assert sum(len(h.records) for h in heads) == 2000
     assert all(h.header["time_base"] == "monotonic" for h in heads)
+    # the rotated files replay as one mission
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "navd.cli",
+            "replay",
+            *map(str, files),
+            "--out",
+            str(tmp_path / "out.jsonl"),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    assert "replayed 2000 records (0 lines skipped)" in r.stderr
 
 
 def test_failing_disk_degrades_logging_and_counts(tmp_path: Path) -> None:
