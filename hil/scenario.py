@@ -81,6 +81,18 @@ class Boat:
 
 
 @dataclass(frozen=True, slots=True)
+class Transponder:
+    """A fixed LBL transponder, placed relative to the vehicle's start."""
+
+    name: str = "t1"
+    north_m: float = _f(0.0)
+    east_m: float = _f(0.0)
+    depth_m: float = _f(0.0, lo=0.0, hi=11000.0)
+    turnaround_s: float = _f(0.0, lo=0.0, hi=10.0)
+    survey_std_m: float = _f(0.5, lo=0.0)  # how well its position was surveyed
+
+
+@dataclass(frozen=True, slots=True)
 class Acoustics:
     ping_interval_s: float = _f(10.0, gt=0.0)
     range_noise_m: float = _f(1.0, lo=0.0)
@@ -94,6 +106,8 @@ class Acoustics:
     modem_mps: float = _f(1500.0, gt=1300.0, hi=1700.0)
     turnaround_s: float = _f(0.0, lo=0.0)
     timeout_s: float = _f(8.0, gt=0.0)
+    # fixed LBL transponders interrogated round robin, one per ping; empty: the boat's UDB
+    transponders: list[Transponder] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)

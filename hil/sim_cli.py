@@ -70,7 +70,8 @@ def write_mission(
         w = MeasurementWriter(fh, m.scenario.start_utc, scenario=m.scenario.name, seed=m.seed)
         for rec in m.records:
             w.write(rec)
-    cfg = deep_merge(crew_config(m.scenario), config_overrides or {})
+    cfg = deep_merge(crew_config(m.scenario), m.config_overrides)
+    cfg = deep_merge(cfg, config_overrides or {})
     (out_dir / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
     with (out_dir / "truth.jsonl").open("w", encoding="utf-8") as fh:
         for s in m.truth:

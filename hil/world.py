@@ -17,7 +17,8 @@ water's.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from geographiclib.geodesic import Geodesic
@@ -25,7 +26,7 @@ from pyproj import Transformer
 
 from hil.scenario import Scenario
 from navd.acoustics import coppens
-from navd.records import Depth, Gps, Heading, Range, Record, Rpm
+from navd.records import Depth, Gps, Heading, Range, Record, Rpm, TravelTime
 
 _GEOD = Geodesic.WGS84
 # WGS-84 geographic 3-D (EPSG:4979) to geocentric (EPSG:4978), PROJ as the reference.
@@ -56,6 +57,8 @@ class Mission:
     pings: int
     replies: int
     channel: AcousticChannel
+    # what the crew's config gets from this mission (surveyed transponder positions)
+    config_overrides: dict[str, Any] = field(default_factory=dict)
 
 
 def _wrap_deg(a: float) -> float:
@@ -200,10 +203,30 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         boat_lat, boat_lon = _offset(boat_lat, boat_lon, bvn * dt, bve * dt)
 
     channel = AcousticChannel(sc, rng, truth, boat_gps, transducer, dt)
-    pings, replies, acoustic = _acoustics(channel)
+    fixed, overrides = _transponders(sc, rng)
+    pings, replies, acoustic = _acoustics(channel, fixed)
     records.extend(acoustic)
     records.sort(key=lambda r: r.t)  # stable: sensor order within an instant is kept
-    return Mission(sc, seed, truth, records, pings, replies, channel)
+    return Mission(sc, seed, truth, records, pings, replies, channel, overrides)
+
+
+def _transponders(
+    sc: Scenario, rng: np.random.Generator
+) -> tuple[list[tuple[Any, np.ndarray]], dict[str, Any]]:
+    """True ECEF positions of fixed transponders, and the surveyed ones the crew configures."""
+    fixed, beacons = [], {}
+    for tp in sc.acoustics.transponders:
+        lat, lon = _offset(sc.vehicle.lat, sc.vehicle.lon, tp.north_m, tp.east_m)
+        fixed.append((tp, _ecef(lat, lon, sc.surface_altitude_m - tp.depth_m)))
+        slat, slon = _offset(lat, lon, *rng.normal(0.0, tp.survey_std_m, 2))
+        beacons[tp.name] = {
+            "lat": slat,
+            "lon": slon,
+            "depth": tp.depth_m,
+            "turnaround_s": tp.turnaround_s,
+            "position_std_m": tp.survey_std_m,
+        }
+    return fixed, ({"beacons": beacons} if beacons else {})
 
 
 class AcousticChannel:
@@ -256,19 +279,43 @@ class AcousticChannel:
         hd = self.h0 - self.sc.boat.transducer_depth_m
         return (1 - w) * _ecef(la0, lo0, hd) + w * _ecef(la1, lo1, hd)
 
-    def ping(self, t_ping: float) -> Range | None:
-        a, rng, c = self.a, self.rng, self.c_water
-        self.bad = (rng.random() >= self.p_bg) if self.bad else (rng.random() < self.p_gb)
-        if self.bad:
-            return None
+    def _round_trip(self, t_ping: float, target_at, turnaround: float) -> tuple[float, float]:
+        """Times the target hears the ping and the vehicle hears the reply (fixed points)."""
+        c = self.c_water
         pv = self.vehicle_at(t_ping)
         tb = t_ping
         for _ in range(4):  # out leg: the beacon hears the ping at tb
-            tb = t_ping + float(np.linalg.norm(self.transducer_at(tb) - pv)) / c
-        pb = self.transducer_at(tb)
-        tr = tb + a.turnaround_s
+            tb = t_ping + float(np.linalg.norm(target_at(tb) - pv)) / c
+        pb = target_at(tb)
+        tr = tb + turnaround
         for _ in range(4):  # back leg: the vehicle hears the reply at tr
-            tr = tb + a.turnaround_s + float(np.linalg.norm(self.vehicle_at(tr) - pb)) / c
+            tr = tb + turnaround + float(np.linalg.norm(self.vehicle_at(tr) - pb)) / c
+        return tb, tr
+
+    def _lost(self) -> bool:
+        rng = self.rng
+        self.bad = (rng.random() >= self.p_bg) if self.bad else (rng.random() < self.p_gb)
+        return self.bad
+
+    def ping_transponder(self, t_ping: float, tp: Any, where: np.ndarray) -> TravelTime | None:
+        """One interrogation of a fixed transponder: the raw round-trip travel time."""
+        a, rng = self.a, self.rng
+        if self._lost():
+            return None
+        _, tr = self._round_trip(t_ping, lambda _t: where, tp.turnaround_s)
+        if tr - t_ping > a.timeout_s:
+            return None
+        extra = rng.normal(0.0, a.range_noise_m)
+        if rng.random() < a.multipath_prob:
+            extra += rng.exponential(a.multipath_mean_m)
+        twtt = tr - t_ping + 2.0 * extra / self.c_water
+        return TravelTime(round(tr, 6), round(t_ping, 6), round(max(0.0, twtt), 9), tp.name)
+
+    def ping(self, t_ping: float) -> Range | None:
+        a, rng = self.a, self.rng
+        if self._lost():
+            return None
+        tb, tr = self._round_trip(t_ping, self.transducer_at, a.turnaround_s)
         if tr - t_ping > a.timeout_s:
             return None
         m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
@@ -298,14 +345,21 @@ class AcousticChannel:
         )
 
 
-def _acoustics(channel: AcousticChannel) -> tuple[int, int, list[Record]]:
+def _acoustics(
+    channel: AcousticChannel, fixed: list[tuple[Any, np.ndarray]]
+) -> tuple[int, int, list[Record]]:
+    """Ping every ``ping_interval_s``: the boat's UDB, or the transponders round robin."""
     a = channel.a
     out: list[Record] = []
     pings = 0
     t_ping = a.ping_interval_s
     while t_ping < channel.t_end - a.timeout_s:
+        if fixed:
+            tp, where = fixed[pings % len(fixed)]
+            r: Record | None = channel.ping_transponder(t_ping, tp, where)
+        else:
+            r = channel.ping(t_ping)
         pings += 1
-        r = channel.ping(t_ping)
         if r is not None:
             out.append(r)
         t_ping += a.ping_interval_s
