@@ -64,6 +64,10 @@ class Sensors:
     gps_warmup_s: float = _f(30.0, lo=0.0)  # fixes poor (decaying error) for this long
     gps_warmup_std_m: float = _f(15.0, lo=0.0)
     rate_hz: float = _f(10.0, gt=0.0, hi=100.0)
+    dvl: bool = False  # a bottom-locked DVL (velocity records) and full attitude records
+    dvl_scale_error: float = _f(0.01, lo=-0.5, hi=0.5)
+    dvl_noise_mps: float = _f(0.01, lo=0.0)
+    dvl_spike_prob: float = _f(0.01, lo=0.0, hi=1.0)
 
 
 @dataclass(frozen=True, slots=True)

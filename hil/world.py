@@ -26,7 +26,17 @@ from pyproj import Transformer
 
 from hil.scenario import Scenario
 from navd.acoustics import coppens
-from navd.records import Depth, Gps, Heading, Range, Record, Rpm, TravelTime
+from navd.records import (
+    Attitude,
+    Depth,
+    Gps,
+    Heading,
+    Range,
+    Record,
+    Rpm,
+    TravelTime,
+    Velocity,
+)
 
 _GEOD = Geodesic.WGS84
 # WGS-84 geographic 3-D (EPSG:4979) to geocentric (EPSG:4978), PROJ as the reference.
@@ -103,6 +113,32 @@ def current_at(sc: Scenario, t: float) -> tuple[float, float]:
     return speed * math.cos(toward), speed * math.sin(toward)
 
 
+def _dvl_records(
+    t: float,
+    s: Any,
+    rng: np.random.Generator,
+    heading: float,
+    hmag: float,
+    speed: float,
+    cn: float,
+    ce: float,
+    w: float,
+) -> list[Record]:
+    """Bottom-locked DVL: velocity over ground in the body frame, with scale error, noise and
+    spikes; the AHRS's full attitude (level flight: roll and pitch are noise)."""
+    psi = math.radians(heading)
+    vn = speed * math.cos(psi) + cn
+    ve = speed * math.sin(psi) + ce
+    u = vn * math.cos(psi) + ve * math.sin(psi)
+    v = -vn * math.sin(psi) + ve * math.cos(psi)
+    k = 1.0 + s.dvl_scale_error
+    vel = [k * x + rng.normal(0.0, s.dvl_noise_mps) for x in (u, v, w)]
+    if rng.random() < s.dvl_spike_prob:
+        vel[0] += float(rng.choice([-1, 1]) * rng.uniform(1.0, 3.0))
+    roll, pitch = rng.normal(0.0, 0.3, 2)
+    return [Velocity(t, *vel), Attitude(t, float(roll), float(pitch), hmag % 360.0)]
+
+
 def _ecef(lat: float, lon: float, h: float) -> np.ndarray:
     return np.array(_ECEF.transform(lon, lat, h))
 
@@ -169,6 +205,8 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         rpm = speed * s.rpm_per_mps + (rng.normal(0, s.rpm_noise) if speed > 0 else 0.0)
         records.append(Rpm(t, max(0.0, rpm)))
         records.append(Depth(t, depth + rng.normal(0, s.depth_noise_m)))
+        if s.dvl:
+            records.extend(_dvl_records(t, s, rng, heading, hmag, speed, cn, ce, ddepth / dt))
         at_surface = depth < _GPS_SURFACE_DEPTH_M
         if at_surface and not gps_was_up:
             t_last_surfaced = t

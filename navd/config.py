@@ -91,6 +91,17 @@ class GpsConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class DvlConfig:
+    """DVL dead reckoning and its error prediction (seed 002), used when velocity records come."""
+
+    velocity_error_frac: float = _num(0.05, lo=0.0, hi=1.0)
+    attitude_error_deg: float = _num(3.0, lo=0.0, hi=45.0)
+    max_accel_mps2: float = _num(0.5, gt=0.0)
+    max_rejections: int = _num(5, lo=0, hi=1000)
+    error_limit_m: float = _num(50.0, gt=0.0)
+
+
+@dataclass(frozen=True, slots=True)
 class NavigationConfig:
     filter: Literal["default", "thesis"] = "default"
     rate_hz: float = _num(10.0, lo=1.0, hi=100.0)
@@ -103,6 +114,7 @@ class NavigationConfig:
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     gate: GateConfig = field(default_factory=GateConfig)
     gps: GpsConfig = field(default_factory=GpsConfig)
+    dvl: DvlConfig = field(default_factory=DvlConfig)
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,6 +17,7 @@ from typing import Any
 from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
+from navd.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import NavFilter, RangeDecision, RangeMeas
 from navd.filter.deadreckoning import DeadReckoner
@@ -62,6 +63,18 @@ class Navigator:
         self.filter: NavFilter = make_filter(cfg)
         self.filter.history.enabled = keep_history
         self.dr = DeadReckoner()
+        d = nav.dvl
+        self.dvl = DvlDeadReckoner(
+            DvlSpec(
+                d.velocity_error_frac,
+                d.attitude_error_deg,
+                d.max_accel_mps2,
+                d.max_rejections,
+                d.error_limit_m,
+            ),
+            math.radians(nav.magnetic_declination_deg),
+        )
+        self._dvl_seen = False
         self.beacons = BeaconResolver(cfg.beacons, nav.gate)
         self.sound = nav.sound_speed.model_obj()
         self.decl = math.radians(nav.magnetic_declination_deg)
@@ -192,6 +205,8 @@ class Navigator:
         for i in range(1, n + 1):
             self.filter.predict(self._t_filter + i * step, step, heading, speed, hd)
             self.dr.step(step, heading, speed, hd)
+        if self._dvl_seen:
+            self.dvl.advance(t, hd)
         self._t_filter = t
 
     # -- inputs ------------------------------------------------------------------------
@@ -200,6 +215,7 @@ class Navigator:
 
     def _on_attitude(self, rec: Attitude) -> None:
         self._heading_deg, self._t_heading = rec.yaw_deg, rec.t
+        self.dvl.attitude(rec.roll_deg, rec.pitch_deg, rec.yaw_deg)
 
     def _on_rpm(self, rec: Rpm) -> None:
         self._rpm, self._t_rpm = rec.rpm, rec.t
@@ -217,7 +233,10 @@ class Navigator:
         self._depth = (rec.bar - p0) * 1e5 / (site.water_density_kgm3 * site.gravity_mps2)
 
     def _on_velocity(self, rec: Velocity) -> None:
-        self.counters["velocity_unused"] += 1  # DVL fusion is not part of the range filter
+        # DVL dead reckoning runs beside the range filter, with its predicted error
+        self._dvl_seen = True
+        if not self.dvl.velocity(rec.t, rec.u, rec.v, rec.w):
+            self.counters["dvl_spikes"] += 1
 
     def _at_surface(self) -> bool:
         return self._depth < self.nav.surface_depth_m
@@ -251,6 +270,7 @@ class Navigator:
         else:
             self.filter.gps_update(lat, lon, std, hd)
         self.dr.reset(lat, lon)
+        self.dvl.reset(lat, lon, rec.t)
         self.counters["gps_fused"] += 1
 
     def _on_range(self, rec: Range | TravelTime) -> dict[str, Any]:
@@ -349,6 +369,13 @@ class Navigator:
         if self.dr.lat is not None and self.dr.lon is not None:
             r["dr_lat"] = math.degrees(self.dr.lat)
             r["dr_lon"] = math.degrees(self.dr.lon)
+        if self._dvl_seen and self.dvl.lat is not None and self.dvl.lon is not None:
+            r["dvl_lat"] = math.degrees(self.dvl.lat)
+            r["dvl_lon"] = math.degrees(self.dvl.lon)
+            r["dvl_error_pred_m"] = self.dvl.pred_error_m
+            ttl = self.dvl.time_to_limit_s()
+            if ttl is not None:
+                r["dvl_time_to_limit_s"] = ttl
         stale = []
         if t - self._t_heading > self.nav.stale_input_s:
             stale.append("heading")
