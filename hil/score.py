@@ -33,6 +33,8 @@ class Score:
     accepted: int
     rejected: int
     reacquisitions: int
+    fix_rms_m: float = math.nan  # the virtual-LBL / LBL least-squares fix, when published
+    fix_coverage: float = 0.0  # fraction of submerged time with a fix published
 
 
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
@@ -48,7 +50,7 @@ def _ne_error(lat: float, lon: float, lat_t: float, lon_t: float) -> tuple[float
 
 def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
     by_t = {round(s["t"], 3): s for s in truth}
-    errs, dr_errs, cur_errs, inside = [], [], [], []
+    errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
     last_sub: tuple[float, float] | None = None
     for o in outputs:
         if o.get("type") != "estimate":
@@ -72,6 +74,10 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         if "dr_lat" in o:
             dre = math.hypot(*_ne_error(o["dr_lat"], o["dr_lon"], tr["lat"], tr["lon"]))
             dr_errs.append(dre)
+        if "fix_lat" in o:
+            fix_errs.append(
+                math.hypot(*_ne_error(o["fix_lat"], o["fix_lon"], tr["lat"], tr["lon"]))
+            )
         last_sub = (e, dre if dre is not None else math.nan)
     ranges = [o for o in outputs if o.get("type") == "range"]
     if not errs:
@@ -89,4 +95,6 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         accepted=sum(1 for r in ranges if r["accepted"]),
         rejected=sum(1 for r in ranges if not r["accepted"]),
         reacquisitions=sum(1 for r in ranges if r.get("reason") == "gate_reacquire"),
+        fix_rms_m=float(np.sqrt(np.mean(np.array(fix_errs) ** 2))) if fix_errs else math.nan,
+        fix_coverage=len(fix_errs) / len(errs),
     )

@@ -264,8 +264,8 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
         _, vt = typing.get_args(tp)
         out = {}
         for k, v in value.items():
-            if not isinstance(k, str) or not k:
-                _fail(path, f"names must be non-empty strings, got {k!r}")
+            if not isinstance(k, str) or not k or not k.isprintable():
+                _fail(path, f"names must be non-empty printable strings, got {k!r}")
             out[k] = _convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
         return out
     if is_dataclass(tp):
@@ -292,8 +292,9 @@ def _build(cls: type, data: Any, path: str) -> Any:
     known = {f.name: f for f in fields(cls)}
     for key in data:
         if key not in known:
-            where = f"{path}.{key}" if path else str(key)
-            _fail(where, "unknown key")
+            # a key is shown as written, or quoted when it holds what a line cannot
+            name = key if isinstance(key, str) and key.isprintable() else repr(key)
+            _fail(f"{path}.{name}" if path else name, "unknown key")
     kwargs = {}
     for name, f in known.items():
         sub = f"{path}.{name}" if path else name

@@ -14,6 +14,8 @@ import statistics
 from collections import Counter, deque
 from typing import Any
 
+import numpy as np
+
 from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
@@ -36,9 +38,11 @@ from navd.records import (
     TravelTime,
     Velocity,
 )
+from navd.vlbl import NetRange, VirtualNet
 
 _GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
 _GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
+_FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
 
 
 def make_filter(cfg: Config) -> NavFilter:
@@ -75,6 +79,8 @@ class Navigator:
             math.radians(nav.magnetic_declination_deg),
         )
         self._dvl_seen = False
+        self.net = VirtualNet()
+        self._rel_n = self._rel_e = 0.0
         self.beacons = BeaconResolver(cfg.beacons, nav.gate)
         self.sound = nav.sound_speed.model_obj()
         self.decl = math.radians(nav.magnetic_declination_deg)
@@ -191,6 +197,12 @@ class Navigator:
         return math.radians(self._heading_deg) + self.decl, speed
 
     def _propagate_to(self, t: float) -> None:
+        if self._t_filter is not None and t > self._t_filter:
+            # relative dead reckoning for the virtual net: needs no absolute position
+            heading, speed = self._speed_heading(t)
+            d = speed * (t - self._t_filter)
+            self._rel_n += d * math.cos(heading)
+            self._rel_e += d * math.sin(heading)
         if self._t_filter is None or not self.filter.initialised:
             self._t_filter = t
             return
@@ -287,10 +299,6 @@ class Navigator:
             out.update(accepted=False, residual_m=None, gate_m=None, reason=reason)
             return out
 
-        if not self.filter.initialised:
-            return refuse("not_initialised")
-        if self.thesis and self._gps_fresh(rec.t):
-            return refuse("gps_available")  # Algorithm 2 ranges only when GPS is not
         fix, why = self.beacons.resolve(
             rec.t, rec.beacon, rec.beacon_lat, rec.beacon_lon, rec.beacon_depth
         )
@@ -309,6 +317,11 @@ class Navigator:
         out["range_m"] = rng
         if not 0.0 < rng <= self.nav.gate.max_range_m:
             return refuse("range_out_of_bounds")
+        self._to_net(rec.t, fix, rng)
+        if not self.filter.initialised:
+            return refuse("not_initialised")
+        if self.thesis and self._gps_fresh(rec.t):
+            return refuse("gps_available")  # Algorithm 2 ranges only when GPS is not
         h = self.surface_altitude
         meas = RangeMeas(
             t=rec.t,
@@ -329,6 +342,23 @@ class Navigator:
             self.counters[f"range_{d.reason}"] += 1
         out.update(accepted=d.accepted, residual_m=d.residual_m, gate_m=d.gate_m, reason=d.reason)
         return out
+
+    def _to_net(self, t: float, fix: Any, rng: float) -> None:
+        """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
+        std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m)
+        h = self.surface_altitude
+        r = NetRange(t, fix.lat, fix.lon, h - fix.depth, rng, std, self._rel_n, self._rel_e)
+        guess = None
+        if self.filter.initialised:
+            est = self.filter.estimate()
+            guess = (est.lat, est.lon)
+        lsfix = self.net.add(r, h - self._depth, guess)
+        if lsfix is not None and not self.filter.initialised and self._t_gps is None:
+            # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
+            std0 = math.sqrt(max(np.linalg.eigvalsh(lsfix.cov_ne)))
+            self.filter.initialise(lsfix.lat, lsfix.lon, max(std0, 1.0), t)
+            self.dr.reset(lsfix.lat, lsfix.lon)
+            self.counters["initialised_from_acoustic_fix"] += 1
 
     # -- outputs -----------------------------------------------------------------------
     def mode(self, t: float) -> str:
@@ -369,6 +399,12 @@ class Navigator:
         if self.dr.lat is not None and self.dr.lon is not None:
             r["dr_lat"] = math.degrees(self.dr.lat)
             r["dr_lon"] = math.degrees(self.dr.lon)
+        fx = self.net.fix
+        if fx is not None and self.net.t_fix is not None and t - self.net.t_fix <= _FIX_MAX_AGE_S:
+            r["fix_lat"] = math.degrees(fx.lat)
+            r["fix_lon"] = math.degrees(fx.lon)
+            r["fix_std_m"] = math.sqrt(0.5 * float(fx.cov_ne[0, 0] + fx.cov_ne[1, 1]))
+            r["fix_age_s"] = t - self.net.t_fix
         if self._dvl_seen and self.dvl.lat is not None and self.dvl.lon is not None:
             r["dvl_lat"] = math.degrees(self.dvl.lat)
             r["dvl_lon"] = math.degrees(self.dvl.lon)
