@@ -103,7 +103,7 @@ class DvlConfig:
 
 @dataclass(frozen=True, slots=True)
 class NavigationConfig:
-    filter: Literal["default", "thesis"] = "default"
+    filter: Literal["default", "thesis", "vlbl"] = "default"
     rate_hz: float = _num(10.0, lo=1.0, hi=100.0)
     magnetic_declination_deg: float = _num(0.0, lo=-180.0, hi=180.0)
     surface_depth_m: float = _num(0.3, lo=0.0, hi=20.0)

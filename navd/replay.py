@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from navd.config import Config
+from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.mlog import MeasurementLog, Skipped, read_measurement_log
 
@@ -28,6 +28,9 @@ class ReplayResult:
 
 
 def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
+    if smooth and cfg.navigation.filter == "vlbl":
+        # VLBL's fixes replace the state rather than update it: there is nothing to smooth
+        raise ConfigError("navigation.filter: --smooth needs a Kalman mode (default or thesis)")
     nav = Navigator(cfg, keep_history=smooth)
     outputs: list[dict[str, Any]] = []
     for rec in log.records:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 
+import pytest
 from conftest import mission
 
 from hil.score import score
 from hil.sim_cli import crew_config, deep_merge
 from navd import geodesy
-from navd.config import config_from_dict
+from navd.config import ConfigError, config_from_dict
 from navd.mlog import MeasurementLog
 from navd.records import Gps
 from navd.replay import run_navigator
@@ -61,3 +62,18 @@ def test_acoustic_fix_initialises_without_gps() -> None:
     res, s = _run("lbl-3", no_gps)
     assert res.counters["initialised_from_acoustic_fix"] == 1
     assert s.rms_m < 10.0
+
+
+def test_vlbl_selectable_as_the_navigation_mode() -> None:
+    m = mission("lbl-3", 1)
+    cfg = config_from_dict(
+        deep_merge(
+            deep_merge(crew_config(m.scenario), m.config_overrides),
+            {"navigation": {"filter": "vlbl"}},
+        )
+    )
+    res = run_navigator(MeasurementLog({}, m.records, []), cfg)
+    s = score(res.outputs, [dataclasses.asdict(x) for x in m.truth])
+    assert s.rms_m < 8.0 and s.dr_rms_m > 3 * s.rms_m
+    with pytest.raises(ConfigError, match="smooth"):
+        run_navigator(MeasurementLog({}, m.records, []), cfg, smooth=True)

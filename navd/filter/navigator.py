@@ -26,6 +26,7 @@ from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.ekf import RangeEKF
 from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
+from navd.filter.vlblmode import VlblMode
 from navd.records import (
     Attitude,
     Depth,
@@ -48,6 +49,8 @@ _FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
 def make_filter(cfg: Config) -> NavFilter:
     nav = cfg.navigation
     nz = nav.noise
+    if nav.filter == "vlbl":
+        return VlblMode()
     if nav.filter == "thesis":
         return ThesisEKF(
             nz.position_init_std_m,
@@ -340,7 +343,12 @@ class Navigator:
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if not d.accepted:
             self.counters[f"range_{d.reason}"] += 1
-        out.update(accepted=d.accepted, residual_m=d.residual_m, gate_m=d.gate_m, reason=d.reason)
+        out.update(
+            accepted=d.accepted,
+            residual_m=d.residual_m if math.isfinite(d.residual_m) else None,
+            gate_m=d.gate_m if math.isfinite(d.gate_m) else None,  # None: no gate (vlbl)
+            reason=d.reason,
+        )
         return out
 
     def _to_net(self, t: float, fix: Any, rng: float) -> None:
@@ -353,6 +361,8 @@ class Navigator:
             est = self.filter.estimate()
             guess = (est.lat, est.lon)
         lsfix = self.net.add(r, h - self._depth, guess)
+        if lsfix is not None and isinstance(self.filter, VlblMode) and self.filter.initialised:
+            self.filter.apply_fix(lsfix)
         if lsfix is not None and not self.filter.initialised and self._t_gps is None:
             # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
             std0 = math.sqrt(max(np.linalg.eigvalsh(lsfix.cov_ne)))
@@ -386,8 +396,8 @@ class Navigator:
         self._fill(r, est)
         r["depth"] = self._depth
         r["mode"] = self.mode(t)
-        x = getattr(self.filter, "x", None)
-        if not self.thesis and x is not None:
+        if isinstance(self.filter, RangeEKF):
+            x = self.filter.x
             r["heading_bias_deg"] = math.degrees(float(x[4]))
             r["speed_scale"] = float(x[5])
             r["beacon_offset_n"] = float(x[6])
