@@ -15,6 +15,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO, Any
 
+from navd import jsonlines
 from navd.records import (
     TYPE_NAMES,
     Attitude,
@@ -177,8 +178,8 @@ def iter_lines(
             continue
         try:
             try:
-                obj = json.loads(line)
-            except (json.JSONDecodeError, RecursionError) as exc:
+                obj = jsonlines.loads(line)
+            except jsonlines.DecodeError as exc:
                 raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
             if isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
                 continue

@@ -6,12 +6,12 @@ The contract is ``shared/spec/replay-interface.md``; the formats are documented 
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from navd import jsonlines
 from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.mlog import MeasurementLog, Skipped, read_measurement_log
@@ -44,8 +44,7 @@ def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> Rep
 
 
 def write_outputs(outputs: list[dict[str, Any]], fh: IO[str]) -> None:
-    dumps = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
-    fh.writelines(dumps(o) + "\n" for o in outputs)
+    fh.writelines(jsonlines.dumps_line(o) for o in outputs)
 
 
 def replay(

@@ -45,6 +45,7 @@ from navd.config import NoiseConfig
 from navd.filter.common import Estimate, History, RangeDecision, RangeMeas, joseph_update
 
 N_STATES = 8
+_EYE = np.eye(N_STATES)
 _OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
 _TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip geometry
 
@@ -116,7 +117,7 @@ class RangeEKF:
     # -- prediction --------------------------------------------------------------------
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""
-        lat, lon, cn, ce, b, s = self.x[:6]
+        lat, lon, cn, ce, b, s = self.x[:6].tolist()
         psi = heading + b
         u = s * speed
         cpsi, spsi = math.cos(psi), math.sin(psi)
@@ -132,7 +133,7 @@ class RangeEKF:
             self._track_t.popleft()
             self._track_ne.popleft()
 
-        F = np.eye(N_STATES)
+        F = _EYE.copy()
         F[0, 2] = dt
         F[1, 3] = dt
         F[0, 4] = -u * spsi * dt
@@ -147,22 +148,32 @@ class RangeEKF:
         tau = nz.input_corr_s
         var_along = (nz.speed_std_mps**2) * tau * dt
         var_cross = (u * math.radians(nz.heading_std_deg)) ** 2 * tau * dt
-        Q = np.zeros((N_STATES, N_STATES))
-        Q[0, 0] = var_along * cpsi * cpsi + var_cross * spsi * spsi
-        Q[1, 1] = var_along * spsi * spsi + var_cross * cpsi * cpsi
-        Q[0, 1] = Q[1, 0] = (var_along - var_cross) * cpsi * spsi
-        Q[2, 2] = Q[3, 3] = nz.current_walk_mps_per_sqrt_s**2 * dt
-        Q[4, 4] = math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
-        Q[5, 5] = nz.speed_scale_walk_per_sqrt_s**2 * dt
         if self.primary is not None:
             # first-order Gauss-Markov error of the beacon's own GPS
             phi = math.exp(-dt / self._off_tau)
             F[6, 6] = F[7, 7] = phi
-            Q[6, 6] = Q[7, 7] = self._off_std**2 * (1.0 - phi * phi)
-        P = F @ self.P @ F.T + Q
-        self.P = 0.5 * (P + P.T)
+        P = F @ self.P @ F.T
+        P += P.T  # symmetric by construction; this removes the round-off
+        P *= 0.5
+        # Q, added in place: it is diagonal but for the along/cross-track position block
+        P[0, 0] += var_along * cpsi * cpsi + var_cross * spsi * spsi
+        P[1, 1] += var_along * spsi * spsi + var_cross * cpsi * cpsi
+        q01 = (var_along - var_cross) * cpsi * spsi
+        P[0, 1] += q01
+        P[1, 0] += q01
+        q_cur = nz.current_walk_mps_per_sqrt_s**2 * dt
+        P[2, 2] += q_cur
+        P[3, 3] += q_cur
+        P[4, 4] += math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
+        P[5, 5] += nz.speed_scale_walk_per_sqrt_s**2 * dt
+        if self.primary is not None:
+            q_off = self._off_std**2 * (1.0 - phi * phi)
+            P[6, 6] += q_off
+            P[7, 7] += q_off
+        self.P = P
         self.t = t
-        self.history.add(t, F, self.x.copy(), self.P.copy())
+        if self.history.enabled:
+            self.history.add(t, F, self.x.copy(), self.P.copy())
 
     def _displacement_since(self, t0: float) -> tuple[float, float]:
         """Dead-reckoned north/east displacement from ``t0`` to now."""

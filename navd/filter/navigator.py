@@ -430,7 +430,8 @@ class Navigator:
         if stale:
             r["stale"] = stale
             self.counters["ticks_with_stale_input"] += 1
-        if not all(math.isfinite(v) for v in r.values() if isinstance(v, float)):
+        # one sum is NaN or infinite exactly when one of its terms is (all are bounded)
+        if not math.isfinite(sum(v for v in r.values() if type(v) is float)):
             # Never publish a NaN: say so and skip the tick.
             self.counters["estimates_not_finite"] += 1
             return None

@@ -146,7 +146,8 @@ class ThesisEKF:
         self.x = kinematic_model(self.x, dt, heading, speed, radius)
         Q = self._metres_cov(self.x[0], self.q_pos**2 * dt, self.q_cur**2 * dt)
         self.P = F @ self.P @ F.T + Q
-        self.history.add(t, F, self.x.copy(), self.P.copy())
+        if self.history.enabled:
+            self.history.add(t, F, self.x.copy(), self.P.copy())
 
     def range_update(self, m: RangeMeas) -> RangeDecision:
         # The thesis takes the range as belonging to the arrival time.
