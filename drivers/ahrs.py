@@ -116,8 +116,7 @@ class AhrsDecoder:
         if f[0] == CMD_EULER:
             roll, pitch, yaw, timer = struct.unpack(">fffI", f[1:17])
             if not all(math.isfinite(v) and abs(v) <= 2 * math.pi for v in (roll, pitch, yaw)):
-                self.stats.bad_frame += 1
-                self.stats.reasons["bad_value"] = self.stats.reasons.get("bad_value", 0) + 1
+                self.stats.bad("bad_value")
                 return None
             att = Attitude(t, math.degrees(roll), math.degrees(pitch), math.degrees(yaw) % 360.0)
             return Euler(t, att, timer / TIMER_HZ)

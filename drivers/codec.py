@@ -24,6 +24,11 @@ class DecodeStats:
     bad_frame: int = 0  # well delimited but unparseable or out of range
     reasons: dict[str, int] = field(default_factory=dict)
 
+    def bad(self, reason: str) -> None:
+        """A well-framed record whose content is unusable (NaN, out of range)."""
+        self.bad_frame += 1
+        self.reasons[reason] = self.reasons.get(reason, 0) + 1
+
     def skip(self, n: int, reason: str) -> None:
         self.skipped_bytes += n
         self.reasons[reason] = self.reasons.get(reason, 0) + 1

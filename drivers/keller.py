@@ -127,8 +127,7 @@ class KellerDecoder:
         (value,) = struct.unpack(">f", f[2:6])
         channel = self._pending.popleft() if self._pending else CH_PRESSURE
         if value != value or abs(value) > 1e6:  # NaN or absurd: the sensor says nonsense
-            self.stats.bad_frame += 1
-            self.stats.reasons["bad_value"] = self.stats.reasons.get("bad_value", 0) + 1
+            self.stats.bad("bad_value")
             return None
         if channel == CH_TEMPERATURE:
             return Temperature(t, value)
