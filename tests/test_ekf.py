@@ -121,3 +121,23 @@ def test_learns_the_error_of_the_position_the_beacon_reports() -> None:
     assert f.primary == "udb"
     assert f.x[6] == pytest.approx(-20.0, abs=3.0)  # true minus reported, north
     assert math.sqrt(f.P[6, 6]) < 5.0
+
+
+def test_a_learned_beacon_offset_fades_as_the_beacon_gps_wanders() -> None:
+    """The offset is a Gauss-Markov process: unobserved, its estimate decays with its variance.
+
+    Without the decay the filter would keep a surface calibration for ever while the
+    boat's GPS error wanders off, and bias every range of a long dive.
+    """
+    f = _ekf(pos_std=3.0)
+    true_lat, true_lon = _beacon(150.0, 0.0)
+    rep_lat, rep_lon = _beacon(170.0, 0.0)
+    for _ in range(12):
+        _run(f, 10.0, speed=0.0)
+        f.gps_update(LAT, LON, 3.0, 0.0)
+        r = geodesy.ecef_distance(LAT, LON, -1.0, true_lat, true_lon, -1.0)
+        f.range_update(RangeMeas(f.t, f.t, r, "udb", rep_lat, rep_lon, -1.0, -1.0, 1.0, 7.0, 120.0))
+    learned = float(f.x[6])
+    _run(f, 120.0, speed=0.0)  # one correlation time without ranges
+    assert f.x[6] == pytest.approx(learned * math.exp(-1.0), rel=1e-6)
+    assert f.P[6, 6] > 0.5 * 7.0**2  # and its uncertainty has grown back towards the prior

@@ -149,9 +149,13 @@ class RangeEKF:
         var_along = (nz.speed_std_mps**2) * tau * dt
         var_cross = (u * math.radians(nz.heading_std_deg)) ** 2 * tau * dt
         if self.primary is not None:
-            # first-order Gauss-Markov error of the beacon's own GPS
+            # first-order Gauss-Markov error of the beacon's own GPS: its expected value
+            # decays towards zero as the error it was learned from wanders away, so the
+            # nominal offset decays with the same phi as the error state
             phi = math.exp(-dt / self._off_tau)
             F[6, 6] = F[7, 7] = phi
+            self.x[6] *= phi
+            self.x[7] *= phi
         P = F @ self.P @ F.T
         P += P.T  # symmetric by construction; this removes the round-off
         P *= 0.5
