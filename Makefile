@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test lint demo bench-accuracy bench-replay bench-decode bench-daemon clean
+.PHONY: test lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -27,6 +27,9 @@ demo: $(STAMP)
 
 bench-accuracy: $(STAMP)
 	$(BIN)/python -m bench.accuracy --seeds 5 --write BENCHMARKS.md
+
+bench-sensitivity: $(STAMP)
+	$(BIN)/python -m bench.sensitivity --write BENCHMARKS.md
 
 bench-replay: $(STAMP)
 	$(BIN)/python -m bench.replay_speed --write BENCHMARKS.md

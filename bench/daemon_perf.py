@@ -10,8 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -19,8 +17,7 @@ import time
 from pathlib import Path
 
 from bench.common import write_section
-
-BIN = Path(sys.executable).parent
+from hil.bench_vehicle import BenchVehicle
 
 
 def _cpu_s(pid: int) -> float:
@@ -42,28 +39,15 @@ def main() -> int:
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp) / "vehicle"
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        hil = subprocess.Popen(
-            [str(BIN / "navd-hil"), "demo", "--dir", str(d), "--zenoh-port", str(port)],
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        hil.stderr.readline()
-        navd = subprocess.Popen(
-            [str(BIN / "navd"), "run", "--config", str(d / "navd.yaml")], stderr=subprocess.DEVNULL
-        )
+        v = BenchVehicle(d, navd_stderr=subprocess.DEVNULL)
+        navd = v.navd
         time.sleep(5.0)
         cpu0, t0 = _cpu_s(navd.pid), time.monotonic()
         time.sleep(args.seconds)
         cpu = (_cpu_s(navd.pid) - cpu0) / (time.monotonic() - t0) * 100.0
         hwm = _hwm_mb(navd.pid)
-        navd.send_signal(signal.SIGTERM)
-        navd.wait(timeout=30)
-        hil.send_signal(signal.SIGTERM)
-        hil.wait(timeout=30)
-        (logfile,) = sorted((d / "log").glob("*.jsonl"))
+        v.stop()
+        logfile = v.logfile()
         health = None
         with logfile.open() as fh:
             for line in fh:

@@ -11,40 +11,29 @@ from __future__ import annotations
 
 import json
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
-BIN = Path(sys.executable).parent
+from hil.bench_vehicle import BIN, BenchVehicle
 
 
 def main() -> int:
     out = Path("out/demo")
     shutil.rmtree(out, ignore_errors=True)
     veh = out / "vehicle"
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    hil = subprocess.Popen(
-        [str(BIN / "navd-hil"), "demo", "--dir", str(veh), "--zenoh-port", str(port)],
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    print(hil.stderr.readline().strip())
+    out.mkdir(parents=True)
     navd_err = (out / "navd.stderr").open("w")
-    navd = subprocess.Popen(
-        [str(BIN / "navd"), "run", "--config", str(veh / "navd.yaml")], stderr=navd_err
-    )
-    print(f"navd run --config {veh / 'navd.yaml'} (pid {navd.pid}); live estimate over zenoh:")
+    v = BenchVehicle(veh, navd_stderr=navd_err)
+    print(v.banner)
+    print(f"navd run --config {v.config} (pid {v.navd.pid}); live estimate over zenoh:")
     try:
         subprocess.run(
             [
                 str(BIN / "navd"),
                 "watch",
                 "--config",
-                str(veh / "navd.yaml"),
+                str(v.config),
                 "--seconds",
                 "128",
                 "--every",
@@ -55,12 +44,9 @@ def main() -> int:
     except KeyboardInterrupt:
         pass
     finally:
-        navd.send_signal(signal.SIGTERM)
-        navd.wait(timeout=30)
-        hil.send_signal(signal.SIGTERM)
-        hil.wait(timeout=30)
-    (logfile,) = sorted((veh / "log").glob("*.jsonl"))
-    t0 = json.loads((veh / "clock.json").read_text())["t0_monotonic"]
+        v.stop()
+    logfile = v.logfile()
+    t0 = v.t0_monotonic
     with (veh / "truth.jsonl").open() as src, (out / "truth_monotonic.jsonl").open("w") as dst:
         for line in src:
             s = json.loads(line)
@@ -73,7 +59,7 @@ def main() -> int:
             "replay",
             str(logfile),
             "--config",
-            str(veh / "navd.yaml"),
+            str(v.config),
             "--out",
             str(out / "nav.jsonl"),
         ],

@@ -7,8 +7,10 @@ along the simulated mission: compass, RPM, pressure and GPS from the simulated
 sensors at their times, ranges from the acoustic channel when navd pings.  The truth
 goes to ``DIR/truth.jsonl``; ``DIR/clock.json`` says which monotonic time was mission
 time zero.  Faults can be scheduled with ``--faults FILE`` (YAML list of
-``{t, device, action, value}``; actions: reconnect, disconnect, garbage, checksum,
-truncate, stall, unstall, drop_replies, gps_off, gps_on).
+``{t, device, action, value}``; actions: reconnect, disconnect, garbage, bad_checksum,
+truncate, drop_reply (value: a probability), stall, unstall, gps_off, gps_on).  One
+line on stderr, written once the emulators serve their ports and ``clock.json``
+exists, tells a supervising script that the vehicle is up.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import signal
 import sys
 import time
@@ -38,6 +41,34 @@ from navd.config import ConfigError, config_from_dict
 from navd.records import Depth, Gps, Heading, Rpm
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under
+_DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
+_RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply")
+_ACTIONS = ("reconnect", "disconnect", "stall", "unstall", "gps_off", "gps_on", *_RATE_ACTIONS)
+
+
+def check_faults(faults: Any) -> list[dict[str, Any]]:
+    """The fault schedule, or a ConfigError naming the first bad entry."""
+    if faults is None:
+        return []
+    if not isinstance(faults, list):
+        raise ConfigError("faults: expected a list of {t, device, action, value}")
+    for i, f in enumerate(faults):
+        where = f"faults[{i}]"
+        if not isinstance(f, dict):
+            raise ConfigError(f"{where}: expected a mapping")
+        t = f.get("t")
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+            raise ConfigError(f"{where}.t: expected a time in seconds, got {t!r}")
+        if f.get("device") not in _DEVICES:
+            raise ConfigError(f"{where}.device: expected one of {', '.join(_DEVICES)}")
+        if f.get("action") not in _ACTIONS:
+            raise ConfigError(f"{where}.action: expected one of {', '.join(_ACTIONS)}")
+        v = f.get("value", 0.0)
+        if f["action"] in _RATE_ACTIONS and (
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0
+        ):
+            raise ConfigError(f"{where}.value: expected a probability in [0, 1]")
+    return faults
 
 
 def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, Any]:
@@ -77,7 +108,9 @@ class Bench:
         s = self.site
         return s.surface_pressure_bar + s.water_density_kgm3 * s.gravity_mps2 * depth / 1e5
 
-    async def run(self, stop: asyncio.Event, faults: list[dict[str, Any]]) -> None:
+    async def run(
+        self, stop: asyncio.Event, faults: list[dict[str, Any]], banner: str = ""
+    ) -> None:
         d = self.dir
         self.t0 = time.monotonic()
         (d / "clock.json").write_text(json.dumps({"t0_monotonic": self.t0, "speed": self.speed}))
@@ -90,6 +123,8 @@ class Bench:
         }
         gps_emu: GpsEmulator = emus["gps"]  # type: ignore[assignment]
         gps_emu.start()
+        if banner:
+            print(banner, file=sys.stderr, flush=True)  # the ports are served: vehicle up
         gps_off = False
         last_fix = -1e9
         pending = sorted(faults, key=lambda f: f["t"])
@@ -133,7 +168,7 @@ class Bench:
             e.port.reconnect()
         elif action == "disconnect":
             e.port.disconnect()
-        elif action in ("garbage", "bad_checksum", "truncate", "drop_reply"):
+        elif action in _RATE_ACTIONS:
             setattr(e.faults, action, float(value))
         elif action == "stall":
             e.faults.stalled = True
@@ -158,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--speed", type=float, default=1.0)
     args = p.parse_args(argv)
     try:
-        faults = yaml.safe_load(Path(args.faults).read_text()) if args.faults else []
+        faults = check_faults(yaml.safe_load(Path(args.faults).read_text())) if args.faults else []
         bench = Bench(args.scenario, args.seed, Path(args.dir), args.zenoh_port, args.speed)
     except (ConfigError, OSError, yaml.YAMLError) as exc:
         print(f"navd-hil: {exc}", file=sys.stderr)
@@ -169,13 +204,9 @@ def main(argv: list[str] | None = None) -> int:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             loop.add_signal_handler(sig, stop.set)
-        await bench.run(stop, faults)
+        banner = f"navd-hil: {bench.sc.name} on {args.dir} ({bench.mission.truth[-1].t:.0f} s)"
+        await bench.run(stop, faults, banner)
 
-    print(
-        f"navd-hil: {bench.sc.name} on {args.dir} ({bench.mission.truth[-1].t:.0f} s)",
-        file=sys.stderr,
-        flush=True,
-    )
     asyncio.run(amain())
     return 0
 

@@ -9,27 +9,19 @@ import json
 import math
 import os
 import signal
-import socket
 import subprocess
-import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 import zenoh
 
+from hil.bench_vehicle import BIN, BenchVehicle
 from hil.score import read_jsonl
 from navd.config import load_config
 from navd.mlog import read_measurement_log
 from navd.publish import zenoh_config
-
-BIN = Path(sys.executable).parent
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Mission:
@@ -37,23 +29,16 @@ class Mission:
 
     def __init__(self, d: Path, faults: list | None = None) -> None:
         self.dir = d
-        self.port = free_port()
-        args = [str(BIN / "navd-hil"), "demo", "--dir", str(d), "--zenoh-port", str(self.port)]
+        fault_file = None
         if faults:
-            (d / "faults.yaml").parent.mkdir(parents=True, exist_ok=True)
-            (d / "faults.yaml").write_text(json.dumps(faults))
-            args += ["--faults", str(d / "faults.yaml")]
-        self.hil = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
-        self.hil.stderr.readline()  # the emulators are up
-        self.cfg = load_config(d / "navd.yaml")
-        self.t0 = json.loads((d / "clock.json").read_text())["t0_monotonic"]
-        self.navd = subprocess.Popen(
-            [str(BIN / "navd"), "run", "--config", str(d / "navd.yaml")],
-            stderr=open(d / "navd.stderr", "w"),  # noqa: SIM115
-        )
+            fault_file = d.parent / "faults.yaml"
+            fault_file.write_text(json.dumps(faults))
+        stderr = open(d.parent / "navd.stderr", "w")  # noqa: SIM115 (the daemon's, kept open)
+        self.vehicle = BenchVehicle(d, navd_stderr=stderr, faults=fault_file)
+        self.navd = self.vehicle.navd
+        self.cfg = load_config(self.vehicle.config)
+        self.t0 = self.vehicle.t0_monotonic
         zc = self.cfg.zenoh
-        from dataclasses import replace
-
         self.session = zenoh.open(zenoh_config(replace(zc, listen=[], connect=list(zc.listen))))
         self.estimates: list[tuple[float, dict]] = []
         self.ranges: list[dict] = []
@@ -80,21 +65,15 @@ class Mission:
 
     def wait_mission(self, t: float) -> None:
         while self.mission_time() < t:
-            assert self.navd.poll() is None, (self.dir / "navd.stderr").read_text()
+            assert self.navd.poll() is None, (self.dir.parent / "navd.stderr").read_text()
             time.sleep(0.2)
 
     def stop(self) -> None:
-        self.navd.send_signal(signal.SIGTERM)
-        self.navd.wait(timeout=20)
+        self.vehicle.stop(timeout=20)
         self.session.close()
-        self.hil.send_signal(signal.SIGTERM)
-        self.hil.wait(timeout=20)
 
     def kill(self) -> None:
-        for p in (self.navd, self.hil):
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+        self.vehicle.kill()
         self.session.close()
 
 
@@ -119,7 +98,7 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
             json.loads(r.ok.payload.to_bytes())
             for r in m.session.get(f"{m.prefix}/cmd/beacon", payload=b'{"name":"x","lat":95}')
         ]
-        assert bad["ok"] is False and "lon" in bad["error"] or "lat" in bad["error"]
+        assert bad["ok"] is False and ("lon" in bad["error"] or "lat" in bad["error"])
     finally:
         m.stop()
 
@@ -217,8 +196,10 @@ def test_faults_on_every_port_and_the_daemon_keeps_navigating(mission_dir: Path)
         assert dev[name]["bad_checksum"] + dev[name]["skipped_bytes"] > 0, name
     assert h["pings"]["timeouts"] + h["pings"]["no_reply"] >= 1
     # the filter recovers: ranges accepted again after the UDB comes back
-    late = [(round(r["t"] - m.t0), r["accepted"], r["reason"], r.get("residual_m"), r.get("gate_m"))
-            for r in m.ranges]
+    late = [
+        (round(r["t"] - m.t0), r["accepted"], r["reason"], r.get("residual_m"), r.get("gate_m"))
+        for r in m.ranges
+    ]
     assert any(r["accepted"] for r in m.ranges if r["t"] - m.t0 > 50), (late, h["pings"])
     assert all(math.isfinite(e["lat"]) for _, e in m.estimates)
 

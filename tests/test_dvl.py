@@ -21,9 +21,10 @@ def test_eq_14_is_the_first_order_error_of_the_rotation(att) -> None:
     v = np.array([1.4, 0.2, -0.1])
     dv = np.array([0.01, -0.02, 0.005])
     da = np.array([0.002, -0.001, 0.003])
-    exact = np.array(rotation_body_to_ned(*(np.array(att) + da))) @ (v + dv) - np.array(
-        rotation_body_to_ned(*att)
-    ) @ v
+    exact = (
+        np.array(rotation_body_to_ned(*(np.array(att) + da))) @ (v + dv)
+        - np.array(rotation_body_to_ned(*att)) @ v
+    )
     first = velocity_error(tuple(v), att, tuple(dv), tuple(da))
     np.testing.assert_allclose(first, exact, atol=2e-4)
 

@@ -1,0 +1,67 @@
+"""The emulated vehicle on the bench: ``navd-hil demo`` and ``navd run`` as on the vehicle.
+
+One home for starting and stopping the pair, shared by ``make demo``, the daemon
+benchmark and the live tests.  Zenoh listens on a free loopback port so that
+several bench vehicles (or a test run beside a demo) never collide.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from typing import IO
+
+BIN = Path(sys.executable).parent
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class BenchVehicle:
+    """Emulators on ptys under ``dir`` (config ``dir/navd.yaml``), then the daemon on them."""
+
+    def __init__(
+        self, d: Path, navd_stderr: IO[str] | int | None = None, faults: Path | None = None
+    ) -> None:
+        self.dir = d
+        self.config = d / "navd.yaml"
+        self.port = free_port()
+        args = [str(BIN / "navd-hil"), "demo", "--dir", str(d), "--zenoh-port", str(self.port)]
+        if faults is not None:
+            args += ["--faults", str(faults)]
+        self.hil = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
+        assert self.hil.stderr is not None
+        # navd-hil writes one line once the emulators serve their ports and the config exists
+        self.banner = self.hil.stderr.readline().strip()
+        if not (d / "clock.json").exists():
+            self.hil.wait(timeout=30)
+            raise RuntimeError(f"navd-hil did not start: {self.banner}")
+        self.t0_monotonic = json.loads((d / "clock.json").read_text())["t0_monotonic"]
+        self.navd = subprocess.Popen(
+            [str(BIN / "navd"), "run", "--config", str(self.config)], stderr=navd_stderr
+        )
+
+    def logfile(self) -> Path:
+        """The daemon's log (one file: bench missions are far below the rotation size)."""
+        (log,) = sorted((self.dir / "log").glob("*.jsonl"))
+        return log
+
+    def stop(self, timeout: float = 30.0) -> None:
+        """SIGTERM, as systemd stops the daemon; then the emulators."""
+        for p in (self.navd, self.hil):
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+                p.wait(timeout=timeout)
+
+    def kill(self) -> None:
+        for p in (self.navd, self.hil):
+            if p.poll() is None:
+                p.kill()
+                p.wait()
