@@ -141,3 +141,23 @@ def test_a_learned_beacon_offset_fades_as_the_beacon_gps_wanders() -> None:
     _run(f, 120.0, speed=0.0)  # one correlation time without ranges
     assert f.x[6] == pytest.approx(learned * math.exp(-1.0), rel=1e-6)
     assert f.P[6, 6] > 0.5 * 7.0**2  # and its uncertainty has grown back towards the prior
+
+
+def test_re_acquisition_learns_a_current_its_prior_ruled_out() -> None:
+    """Re-acquiring widens the current by the drift it implies, not by the (wrong) prior.
+
+    The Chesapeake case: a 0.3 m/s current against a configured 0.01 m/s prior.  Capping
+    the widening at the prior would re-acquire the position and then drift off again.
+    """
+    f = _ekf(pos_std=2.0, noise=NoiseConfig(current_init_std_mps=0.01))
+    beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
+    for k in range(1, 19):  # three minutes, a range every 10 s
+        _run(f, 10.0, speed=0.0)
+        true_lat, true_lon = geodesy.offset_position(LAT, LON, 0.0, 0.3 * 10.0 * k)
+        blat, blon = _beacon(*beacons[k % 3])
+        r = geodesy.ecef_distance(true_lat, true_lon, -1.0, blat, blon, -1.0)
+        f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0))
+    assert f.reacquisitions == 1  # once, not again and again as the current drags it off
+    assert f.x[3] == pytest.approx(0.3, abs=0.05)  # east current, m/s
+    e, n, _ = geodesy.enu_offset(true_lat, true_lon, 0, f.x[0], f.x[1], 0)
+    assert math.hypot(e, n) < 10.0

@@ -26,9 +26,10 @@ What it changes from the thesis, and why:
 * Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of a
   one-sigma radius, tighter for ranges that read long (multipath only lengthens
   a path), and re-acquisition: when ``reacquire_after`` of the last
-  ``2 * reacquire_after`` ranges were rejected, the position and current
-  covariance is inflated by the largest of those residuals, so a filter that has
-  drifted (too small a current prior) is never locked out for good.
+  ``2 * reacquire_after`` ranges were rejected, the position covariance is
+  inflated by the largest of those residuals and the current's by the drift rate
+  that residual implies, so a filter that has drifted (too small a current prior)
+  is never locked out for good, and can then learn the current it had ruled out.
 * Joseph-form update, symmetrised covariance, positions moved along geodesics.
 """
 
@@ -48,6 +49,10 @@ N_STATES = 8
 _EYE = np.eye(N_STATES)
 _OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
 _TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip geometry
+# Re-acquisition: a drift is assumed to have built up over at least this long, and no
+# current is faster than this (strong tidal races reach about 3 m/s).
+_MIN_DRIFT_S = 60.0
+_MAX_CURRENT_MPS = 3.0
 
 
 class RangeEKF:
@@ -69,7 +74,7 @@ class RangeEKF:
         # recent gate decisions: (accepted, residual); see _reacquire
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
-        self.t_last_accept: float | None = None
+        self.t_anchor = 0.0  # when the position was last pinned (GPS, re-acquisition)
         self.t = 0.0
         # cumulative dead-reckoned north/east displacement at each step time (round-trip model)
         self._track_t: deque[float] = deque()
@@ -95,7 +100,7 @@ class RangeEKF:
         )
         self.initialised = True
         self.t = t
-        self.t_last_accept = t
+        self.t_anchor = t
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
@@ -110,7 +115,7 @@ class RangeEKF:
         P = IKH @ self.P @ IKH.T + K @ R @ K.T
         self.P = 0.5 * (P + P.T)
         self._apply(K @ np.array([n, e]), hd)
-        self.t_last_accept = self.t
+        self.t_anchor = self.t
         self._recent.clear()
         self.history.correct(self.x.copy(), self.P.copy())
 
@@ -258,23 +263,25 @@ class RangeEKF:
         K, self.P, _ = joseph_update(self.P, H, r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._recent.append((True, residual))
-        self.t_last_accept = m.t
         self.history.correct(self.x.copy(), self.P.copy())
         return RangeDecision(True, residual, gate_m, "ok")
 
     def _reacquire(self, residual: float, t: float) -> None:
         # Consecutive rejections mean the estimate, not the ranges, has gone wrong (the
         # seed's Chesapeake run: current prior too small, every range rejected).  Widen
-        # position by the residual and the current by the drift rate it implies.
-        # The current is widened by the drift rate the residual implies, never beyond its prior.
-        since = max(60.0, t - (self.t_last_accept if self.t_last_accept is not None else t))
-        cur_var = min((residual / since) ** 2, self.noise.current_init_std_mps**2)
+        # position by the residual, and the current by the drift rate that would have
+        # built that residual up since the position was last anchored (a GPS fix or the
+        # previous re-acquisition).  That rate is bounded by what water can do, not by
+        # the configured prior: the prior being too small is the failure recovered here.
+        since = max(_MIN_DRIFT_S, t - self.t_anchor)
+        cur_var = min((residual / since) ** 2, _MAX_CURRENT_MPS**2)
         self.P[0, 0] += residual**2
         self.P[1, 1] += residual**2
         self.P[2, 2] += cur_var
         self.P[3, 3] += cur_var
         self._recent.clear()
         self.reacquisitions += 1
+        self.t_anchor = t
         self.history.widen(self.P.copy())
 
     def _apply(self, dx: np.ndarray, hd: float) -> None:
