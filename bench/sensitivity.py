@@ -50,6 +50,10 @@ def variants(sc: Scenario) -> list[tuple[str, Scenario]]:
             f"beacon GPS {b.gps_std_m / 2:g} m per axis (was {b.gps_std_m:g})",
             rep(sc, boat=rep(b, gps_std_m=b.gps_std_m / 2)),
         ),
+        (
+            "beacon position exact (no GPS error, no transducer swing)",
+            rep(sc, boat=rep(b, gps_std_m=0.0, swing_m=0.0)),
+        ),
     ]
 
 
