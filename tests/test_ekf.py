@@ -161,3 +161,20 @@ def test_re_acquisition_learns_a_current_its_prior_ruled_out() -> None:
     assert f.x[3] == pytest.approx(0.3, abs=0.05)  # east current, m/s
     e, n, _ = geodesy.enu_offset(true_lat, true_lon, 0, f.x[0], f.x[1], 0)
     assert math.hypot(e, n) < 10.0
+
+
+def test_a_multipath_burst_does_not_open_the_gate_to_the_next_outlier() -> None:
+    """Three long outliers among good ranges trigger re-acquisition, but a small one."""
+    f = _ekf(pos_std=2.0)
+    beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
+    extra = [0.0, 150.0, 0.0, 10.0, 0.0, 40.0, 30.0]  # metres of multipath on each range
+    decisions = []
+    for k, x in enumerate(extra):
+        blat, blon = _beacon(*beacons[k % 3])
+        r = geodesy.ecef_distance(LAT, LON, -1.0, blat, blon, -1.0) + x
+        f.t += 10.0
+        decisions.append(f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0)))
+    assert [d.reason for d in decisions[:6]] == ["ok", "gate", "ok", "gate", "ok", "gate_reacquire"]
+    assert not decisions[6].accepted  # the widened gate still refuses a 30 m outlier
+    e, n, _ = geodesy.enu_offset(LAT, LON, 0, f.x[0], f.x[1], 0)
+    assert math.hypot(e, n) < 3.0

@@ -27,8 +27,8 @@ What it changes from the thesis, and why:
   one-sigma radius, tighter for ranges that read long (multipath only lengthens
   a path), and re-acquisition: when ``reacquire_after`` of the last
   ``2 * reacquire_after`` ranges were rejected, the position covariance is
-  inflated by the largest of those residuals and the current's by the drift rate
-  that residual implies, so a filter that has drifted (too small a current prior)
+  inflated by the drift those residuals show (``_drift_size``) and the current's
+  by the drift rate that implies, so a filter that has drifted (too small a current prior)
   is never locked out for good, and can then learn the current it had ruled out.
 * Joseph-form update, symmetrised covariance, positions moved along geodesics.
 """
@@ -53,6 +53,20 @@ _TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip ge
 # current is faster than this (strong tidal races reach about 3 m/s).
 _MIN_DRIFT_S = 60.0
 _MAX_CURRENT_MPS = 3.0
+
+
+def _drift_size(rejected: list[float]) -> float:
+    """How far the estimate has drifted, judged from the residuals the gate rejected.
+
+    A drift of d metres shows as residuals up to d, by how the line of sight falls.
+    A short residual cannot be multipath (it only lengthens a path), so the largest
+    short one is drift; a long one may be an outlier, so of those only the smallest
+    counts.  Taking the largest of all let one multipath burst open the gate wide
+    enough to accept the next outlier.
+    """
+    short = [-r for r in rejected if r < 0.0]
+    long_ = [r for r in rejected if r >= 0.0]
+    return max(short + ([min(long_)] if long_ else []))
 
 
 class RangeEKF:
@@ -257,7 +271,7 @@ class RangeEKF:
             self._recent.append((False, residual))
             rejected = [r for ok, r in self._recent if not ok]
             if len(rejected) >= self.reacquire_after:
-                self._reacquire(max(rejected, key=abs), m.t)
+                self._reacquire(_drift_size(rejected), m.t)
                 return RangeDecision(False, residual, gate_m, "gate_reacquire")
             return RangeDecision(False, residual, gate_m, "gate")
         K, self.P, _ = joseph_update(self.P, H, r_var)
