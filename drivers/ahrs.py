@@ -22,16 +22,16 @@ import math
 import struct
 from dataclasses import dataclass
 
-from drivers.codec import DecodeStats
+from drivers.codec import FrameDecoder
 from navd.records import Attitude
 
 CMD_EULER = 0xCE
 CMD_CONTINUOUS = 0xC4
 CMD_SAMPLING = 0xDB
 TIMER_HZ = 62_500.0
-_EULER_LEN = 19
-_CONT_ACK_LEN = 8
-_SAMPLING_ACK_LEN = 19
+# what the device sends, by its first byte: the 0xCE Euler record and the replies to
+# the commands navd sends (set continuous mode, write sampling settings)
+_FRAME_LENGTHS = {CMD_EULER: 19, CMD_CONTINUOUS: 8, CMD_SAMPLING: 19}
 
 
 def checksum(data: bytes) -> int:
@@ -76,41 +76,12 @@ class Euler:
     timer_s: float
 
 
-class AhrsDecoder:
-    def __init__(self) -> None:
-        self.stats = DecodeStats()
-        self._buf = bytearray()
+class AhrsDecoder(FrameDecoder):
+    def _frame_length(self, buf: bytearray) -> int | None:
+        return _FRAME_LENGTHS.get(buf[0])
 
-    def feed(self, data: bytes, t: float) -> list[object]:
-        self.stats.bytes_in += len(data)
-        self._buf += data
-        buf = self._buf
-        out: list[object] = []
-        while buf:
-            head = buf[0]
-            n = {
-                CMD_EULER: _EULER_LEN,
-                CMD_CONTINUOUS: _CONT_ACK_LEN,
-                CMD_SAMPLING: _SAMPLING_ACK_LEN,
-            }.get(head)
-            if n is None:
-                self.stats.skip(1, "resync")
-                del buf[0]
-                continue
-            if len(buf) < n:
-                break
-            frame = bytes(buf[:n])
-            if checksum(frame[:-2]) != int.from_bytes(frame[-2:], "big"):
-                self.stats.bad_checksum += 1
-                self.stats.skip(1, "checksum")
-                del buf[0]
-                continue
-            del buf[:n]
-            rec = self._parse(frame, t)
-            if rec is not None:
-                out.append(rec)
-                self.stats.records += 1
-        return out
+    def _checksum_ok(self, frame: bytes) -> bool:
+        return checksum(frame[:-2]) == int.from_bytes(frame[-2:], "big")
 
     def _parse(self, f: bytes, t: float) -> object | None:
         if f[0] == CMD_EULER:

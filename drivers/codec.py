@@ -34,6 +34,59 @@ class DecodeStats:
         self.reasons[reason] = self.reasons.get(reason, 0) + 1
 
 
+class FrameDecoder:
+    """Binary frames whose first bytes give their length, closed by a checksum.
+
+    The framing every binary device here shares (Keller bus, 3DM-GX3): find a
+    plausible frame start, wait for the whole frame, check it, and on a mismatch
+    slide by one byte, because a real frame may begin inside the rejected one.
+    Subclasses say where frames start, how long they are, what checks them and
+    what they mean.
+    """
+
+    def __init__(self) -> None:
+        self.stats = DecodeStats()
+        self._buf = bytearray()
+
+    def _frame_length(self, buf: bytearray) -> int | None:
+        """Length of the frame starting at ``buf[0]``, 0 if more bytes are needed to
+        tell, None if no frame starts there."""
+        raise NotImplementedError
+
+    def _checksum_ok(self, frame: bytes) -> bool:
+        raise NotImplementedError
+
+    def _parse(self, frame: bytes, t: float) -> object | None:
+        """The record a checked frame holds, or None (after counting why) if unusable."""
+        raise NotImplementedError
+
+    def feed(self, data: bytes, t: float) -> list[object]:
+        self.stats.bytes_in += len(data)
+        buf = self._buf
+        buf += data
+        out: list[object] = []
+        while buf:
+            n = self._frame_length(buf)
+            if n is None:
+                self.stats.skip(1, "resync")
+                del buf[0]
+                continue
+            if n == 0 or len(buf) < n:
+                break  # wait for the rest of the frame
+            frame = bytes(buf[:n])
+            if not self._checksum_ok(frame):
+                self.stats.bad_checksum += 1
+                self.stats.skip(1, "checksum")
+                del buf[0]
+                continue
+            del buf[:n]
+            rec = self._parse(frame, t)
+            if rec is not None:
+                out.append(rec)
+                self.stats.records += 1
+        return out
+
+
 class Decoder(Protocol):
     stats: DecodeStats
 

@@ -21,7 +21,7 @@ import struct
 from collections import deque
 from dataclasses import dataclass
 
-from drivers.codec import DecodeStats
+from drivers.codec import FrameDecoder
 from navd.records import Pressure
 
 F_INIT = 48
@@ -74,13 +74,12 @@ class DeviceError:
     code: int
 
 
-class KellerDecoder:
+class KellerDecoder(FrameDecoder):
     """Answers from one device address; channels of F73 answers are matched FIFO to requests."""
 
     def __init__(self, addr: int = 250) -> None:
+        super().__init__()
         self.addr = addr
-        self.stats = DecodeStats()
-        self._buf = bytearray()
         self._pending: deque[int] = deque(maxlen=16)
 
     def request_init(self) -> bytes:
@@ -90,33 +89,16 @@ class KellerDecoder:
         self._pending.append(channel)
         return encode_read_float(self.addr, channel)
 
-    def feed(self, data: bytes, t: float) -> list[object]:
-        self.stats.bytes_in += len(data)
-        self._buf += data
-        out: list[object] = []
-        buf = self._buf
-        while len(buf) >= 2:
-            if buf[0] != self.addr or buf[1] not in _LENGTHS:
-                self.stats.skip(1, "resync")
-                del buf[0]
-                continue
-            n = _LENGTHS[buf[1]]
-            if len(buf) < n:
-                break  # wait for the rest of the frame
-            frame = bytes(buf[:n])
-            crc = crc16(frame[:-2])
-            got = frame[-2:]
-            if got not in (crc.to_bytes(2, "big"), crc.to_bytes(2, "little")):
-                self.stats.bad_checksum += 1
-                self.stats.skip(1, "checksum")
-                del buf[0]  # the frame may have started later: slide by one byte
-                continue
-            del buf[:n]
-            rec = self._parse(frame, t)
-            if rec is not None:
-                out.append(rec)
-                self.stats.records += 1
-        return out
+    def _frame_length(self, buf: bytearray) -> int | None:
+        if buf[0] != self.addr:
+            return None
+        if len(buf) < 2:
+            return 0
+        return _LENGTHS.get(buf[1])
+
+    def _checksum_ok(self, frame: bytes) -> bool:
+        crc = crc16(frame[:-2])
+        return frame[-2:] in (crc.to_bytes(2, "big"), crc.to_bytes(2, "little"))
 
     def _parse(self, f: bytes, t: float) -> object | None:
         fn = f[1]
