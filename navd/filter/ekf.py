@@ -28,8 +28,9 @@ What it changes from the thesis, and why:
   a path), and re-acquisition: when ``reacquire_after`` of the last
   ``2 * reacquire_after`` ranges were rejected, the position covariance is
   inflated by the drift those residuals show (``_drift_size``) and the current's
-  by the drift rate that implies, so a filter that has drifted (too small a current prior)
-  is never locked out for good, and can then learn the current it had ruled out.
+  by the drift rate that implies, so a filter that has drifted (too small a
+  current prior) is never locked out for good, and then learns the current it
+  had ruled out.
 * Joseph-form update, symmetrised covariance, positions moved along geodesics.
 """
 
@@ -280,17 +281,17 @@ class RangeEKF:
         self.history.correct(self.x.copy(), self.P.copy())
         return RangeDecision(True, residual, gate_m, "ok")
 
-    def _reacquire(self, residual: float, t: float) -> None:
+    def _reacquire(self, drift_m: float, t: float) -> None:
         # Consecutive rejections mean the estimate, not the ranges, has gone wrong (the
         # seed's Chesapeake run: current prior too small, every range rejected).  Widen
-        # position by the residual, and the current by the drift rate that would have
-        # built that residual up since the position was last anchored (a GPS fix or the
+        # position by the drift, and the current by the drift rate that would have
+        # built it up since the position was last anchored (a GPS fix or the
         # previous re-acquisition).  That rate is bounded by what water can do, not by
         # the configured prior: the prior being too small is the failure recovered here.
         since = max(_MIN_DRIFT_S, t - self.t_anchor)
-        cur_var = min((residual / since) ** 2, _MAX_CURRENT_MPS**2)
-        self.P[0, 0] += residual**2
-        self.P[1, 1] += residual**2
+        cur_var = min((drift_m / since) ** 2, _MAX_CURRENT_MPS**2)
+        self.P[0, 0] += drift_m**2
+        self.P[1, 1] += drift_m**2
         self.P[2, 2] += cur_var
         self.P[3, 3] += cur_var
         self._recent.clear()
