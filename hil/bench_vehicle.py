@@ -37,16 +37,21 @@ class BenchVehicle:
         if faults is not None:
             args += ["--faults", str(faults)]
         self.hil = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
-        assert self.hil.stderr is not None
-        # navd-hil writes one line once the emulators serve their ports and the config exists
-        self.banner = self.hil.stderr.readline().strip()
-        if not (d / "clock.json").exists():
-            self.hil.wait(timeout=30)
-            raise RuntimeError(f"navd-hil did not start: {self.banner}")
-        self.t0_monotonic = json.loads((d / "clock.json").read_text())["t0_monotonic"]
-        self.navd = subprocess.Popen(
-            [str(BIN / "navd"), "run", "--config", str(self.config)], stderr=navd_stderr
-        )
+        self._procs: list[subprocess.Popen] = [self.hil]  # the daemon goes first, when started
+        try:
+            assert self.hil.stderr is not None
+            # navd-hil writes one line once the emulators serve their ports
+            self.banner = self.hil.stderr.readline().strip()
+            if not (d / "clock.json").exists():
+                raise RuntimeError(f"navd-hil did not start: {self.banner}")
+            self.t0_monotonic = json.loads((d / "clock.json").read_text())["t0_monotonic"]
+            self.navd = subprocess.Popen(
+                [str(BIN / "navd"), "run", "--config", str(self.config)], stderr=navd_stderr
+            )
+            self._procs.insert(0, self.navd)
+        except BaseException:
+            self.kill()  # never leave an emulator running behind a failed start
+            raise
 
     def logfile(self) -> Path:
         """The daemon's log (one file: bench missions are far below the rotation size)."""
@@ -55,13 +60,13 @@ class BenchVehicle:
 
     def stop(self, timeout: float = 30.0) -> None:
         """SIGTERM, as systemd stops the daemon; then the emulators."""
-        for p in (self.navd, self.hil):
+        for p in self._procs:
             if p.poll() is None:
                 p.send_signal(signal.SIGTERM)
                 p.wait(timeout=timeout)
 
     def kill(self) -> None:
-        for p in (self.navd, self.hil):
+        for p in self._procs:
             if p.poll() is None:
                 p.kill()
                 p.wait()

@@ -39,7 +39,11 @@ class Mission:
         self.cfg = load_config(self.vehicle.config)
         self.t0 = self.vehicle.t0_monotonic
         zc = self.cfg.zenoh
-        self.session = zenoh.open(zenoh_config(replace(zc, listen=[], connect=list(zc.listen))))
+        try:
+            self.session = zenoh.open(zenoh_config(replace(zc, listen=[], connect=list(zc.listen))))
+        except Exception:
+            self.vehicle.kill()
+            raise
         self.estimates: list[tuple[float, dict]] = []
         self.ranges: list[dict] = []
         self.health: list[dict] = []
