@@ -24,10 +24,10 @@ from typing import Any
 from drivers import ahrs, castle, gps, keller, modem
 from drivers.codec import DecodeStats
 from drivers.transport import SerialTransport
-from navd.config import Beacon, Config
+from navd.config import Config
 from navd.filter import Navigator
 from navd.log import RecordLog
-from navd.records import Gps, Pressure, Range, Rpm
+from navd.records import Gps, Pressure, Range, Reset, Rpm, SetBeacon
 from navd.sdnotify import Notifier
 
 log = logging.getLogger("navd")
@@ -163,14 +163,12 @@ class Daemon:
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
     def on_command(self, name: str, body: dict[str, Any]) -> None:
+        """A validated command: fed like a measurement, so the log keeps it and replay redoes it."""
         t = self.clock()
         if name == "reset":
-            self.nav.restart("command")
-            self.rlog.event(t, "reset to next GPS fix", **body)
+            self.feed(Reset(t))
         elif name == "beacon":
-            b = Beacon(lat=body["lat"], lon=body["lon"], depth=body.get("depth", 0.0))
-            self.nav.set_beacon(body["name"], b)
-            self.rlog.event(t, "beacon position set", **body)
+            self.feed(SetBeacon(t, body["name"], body["lat"], body["lon"], body.get("depth", 0.0)))
         self.events.append(f"{name} {body}")
 
     # -- tasks -------------------------------------------------------------------------

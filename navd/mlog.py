@@ -25,7 +25,9 @@ from navd.records import (
     Pressure,
     Range,
     Record,
+    Reset,
     Rpm,
+    SetBeacon,
     TravelTime,
     Velocity,
 )
@@ -140,6 +142,14 @@ _PARSERS = {
     "range": _parse_range,
     "travel_time": _parse_tt,
     "velocity": lambda o, t: Velocity(t, _num(o, "u"), _num(o, "v"), _num(o, "w")),
+    "cmd_reset": lambda o, t: Reset(t),
+    "cmd_beacon": lambda o, t: SetBeacon(
+        t,
+        _str(o, "beacon"),
+        _num(o, "lat", -90.0, 90.0),
+        _num(o, "lon", -180.0, 180.0),
+        _opt(o, "depth", 0.0, 11000.0) or 0.0,
+    ),
 }
 
 

@@ -83,7 +83,41 @@ class Velocity:
     w: float
 
 
-Record = Heading | Attitude | Rpm | Depth | Pressure | Gps | Range | TravelTime | Velocity
+@dataclass(frozen=True, slots=True)
+class Reset:
+    """The operator's ``cmd/reset``: forget the estimate, start again at the next GPS fix.
+
+    Commands are records like measurements so that the daemon's log holds them in
+    order and ``navd replay`` re-applies them: a replay reproduces the live run.
+    """
+
+    t: float
+
+
+@dataclass(frozen=True, slots=True)
+class SetBeacon:
+    """The operator's ``cmd/beacon``: where a beacon is, for replies that carry no position."""
+
+    t: float
+    beacon: str
+    lat: float
+    lon: float
+    depth: float = 0.0
+
+
+Record = (
+    Heading
+    | Attitude
+    | Rpm
+    | Depth
+    | Pressure
+    | Gps
+    | Range
+    | TravelTime
+    | Velocity
+    | Reset
+    | SetBeacon
+)
 
 #: measurement-log ``type`` name of each record class
 TYPE_NAMES: dict[type, str] = {
@@ -96,4 +130,6 @@ TYPE_NAMES: dict[type, str] = {
     Range: "range",
     TravelTime: "travel_time",
     Velocity: "velocity",
+    Reset: "cmd_reset",
+    SetBeacon: "cmd_beacon",
 }

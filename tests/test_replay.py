@@ -221,3 +221,43 @@ def test_depth_from_pressure_zeroed_at_the_surface() -> None:
     out = nav.feed(Pressure(10.0, 1.030 + 0.0980665))  # 1 m of fresh water, GPS long gone
     out += nav.advance(10.0)
     assert out[-1]["depth"] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_operator_commands_in_the_log_are_replayed(tmp_path: Path) -> None:
+    """cmd_beacon gives a position-less beacon its place (keeping its configured
+    turnaround); cmd_reset forgets the estimate until the next GPS fix, as live."""
+    log = tmp_path / "cmd.jsonl"
+    gps = {"type": "gps", "lat": 37.05, "lon": -80.66, "alt": 0.0, "fix": 1}
+    lines = [HEADER.strip()]
+    lines += [json.dumps({**gps, "t": k * 0.1}) for k in range(50)]
+    # the operator tells navd where lbl1 is: 150 m due north, at the surface
+    lines.append(
+        json.dumps(
+            {"type": "cmd_beacon", "t": 4.9, "beacon": "lbl1", "lat": 37.0513486, "lon": -80.66}
+        )
+    )
+    tt = {"type": "travel_time", "t": 5.0, "t_ping": 4.8, "beacon": "lbl1"}
+    lines.append(json.dumps({**tt, "twtt_s": 2 * 150.0 / 1447.3 + 0.1}))
+    lines.append(json.dumps({"type": "cmd_reset", "t": 6.0}))
+    lines.append(json.dumps({"type": "heading", "t": 9.0, "deg": 0.0}))  # no estimate
+    lines += [json.dumps({**gps, "t": 10.0 + k * 0.1}) for k in range(10)]  # new start
+    log.write_text("\n".join(lines) + "\n")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("beacons:\n  lbl1:\n    turnaround_s: 0.1\n")
+    out = tmp_path / "o.jsonl"
+    r = run("replay", str(log), "--config", str(cfg), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    outs = read_jsonl(out)
+    (rng,) = [o for o in outs if o["type"] == "range"]
+    assert rng["accepted"] and abs(rng["residual_m"]) < 1.0  # turnaround kept
+    ticks = [o["t"] for o in outs if o["type"] == "estimate"]
+    assert max(t for t in ticks if t < 10.0) <= 6.0 and max(ticks) > 10.0
+
+
+def test_a_bad_command_record_names_its_line(tmp_path: Path) -> None:
+    log = tmp_path / "bad.jsonl"
+    bad = {"type": "cmd_beacon", "t": 1.0, "beacon": "lbl1", "lat": 95.0, "lon": 0.0}
+    log.write_text(HEADER + json.dumps(bad) + "\n")
+    out = tmp_path / "o.jsonl"
+    r = run("replay", str(log), "--out", str(out))
+    assert "line 2" in r.stderr and "lat" in r.stderr and "Traceback" not in r.stderr

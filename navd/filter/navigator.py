@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import Counter, deque
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,9 @@ from navd.records import (
     Pressure,
     Range,
     Record,
+    Reset,
     Rpm,
+    SetBeacon,
     TravelTime,
     Velocity,
 )
@@ -145,9 +148,18 @@ class Navigator:
         self._t_filter = None
         self._t_gps = None
 
-    def set_beacon(self, name: str, beacon: Beacon) -> None:
-        """Use this fixed position for ``name`` where replies carry none."""
-        self.beacons.beacons = {**self.beacons.beacons, name: beacon}
+    def _on_reset(self, rec: Reset) -> None:
+        self.restart("command")
+
+    def _on_set_beacon(self, rec: SetBeacon) -> None:
+        """Use this fixed position for the beacon where its replies carry none.
+
+        Only the position changes: the configured turnaround time and position error
+        of that beacon still hold.
+        """
+        known = self.beacons.beacons.get(rec.beacon, Beacon())
+        fixed = replace(known, lat=rec.lat, lon=rec.lon, depth=rec.depth)
+        self.beacons.beacons = {**self.beacons.beacons, rec.beacon: fixed}
 
     def advance(self, t: float) -> list[dict[str, Any]]:
         """Run the ticks up to and including ``t`` (the daemon's clock, or the end of a log)."""
@@ -450,6 +462,8 @@ _HANDLERS: dict[type, Any] = {
     Range: Navigator._on_range,
     TravelTime: Navigator._on_range,
     Velocity: Navigator._on_velocity,
+    Reset: Navigator._on_reset,
+    SetBeacon: Navigator._on_set_beacon,
 }
 
 __all__ = ["Navigator", "make_filter"]
