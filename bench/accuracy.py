@@ -85,12 +85,30 @@ def _m(xs: list[float]) -> float:
     return statistics.fmean(xs) if xs else math.nan
 
 
+def _reacq(d: list[Score]) -> str:
+    n = _m([x.reacquisitions for x in d])
+    replies = [x.reacquire_replies_max for x in d if not math.isnan(x.reacquire_replies_max)]
+    return f"{n:.1f} ({max(replies):.0f})" if replies else f"{n:.1f}"
+
+
+def _most_replies(results: dict[str, dict[str, list[Score]]]) -> str:
+    xs = [
+        x.reacquire_replies_max
+        for r in results.values()
+        for x in r["default"]
+        if not math.isnan(x.reacquire_replies_max)
+    ]
+    return f"{max(xs):.0f}" if xs else "-"
+
+
 def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
     lines = [
         f"Mean over seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds). Errors in metres over the "
         "submerged part; *surf* = error of the last submerged estimate; *in95* = fraction of "
         "submerged time the truth lies inside the filter's 95 % ellipse; *cur* = RMS current "
-        "error (m/s); *acc/rej* = ranges accepted/rejected per mission; *reacq* = re-acquisitions; "
+        "error (m/s); *acc/rej* = ranges accepted/rejected per mission; *reacq* = re-acquisitions "
+        "per mission, and in brackets the most replies any of them took from the first rejection "
+        "of its streak to the next accepted range; "
         "*VLBL fix* = the least-squares fix of the virtual net (seed 001; with fixed transponders "
         "the LBL fix of seed 004), published beside the filter, and the fraction of submerged "
         "time it was available.",
@@ -120,7 +138,7 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
             f"| {_m([x.surfacing_m for x in d]):.1f} | {row['in95']:.2f} "
             f"| {_m([x.current_rms_mps for x in d]):.3f} "
             f"| {_m([x.accepted for x in d]):.1f}/{_m([x.rejected for x in d]):.1f} "
-            f"| {_m([x.reacquisitions for x in d]):.1f} | {row['smoothed']:.1f} "
+            f"| {_reacq(d)} | {row['smoothed']:.1f} "
             f"| {_m([x.fix_rms_m for x in d]):.1f} ({_m([x.fix_coverage for x in d]):.0%}) "
             f"| {_m([x.rms_m for x in r['vlbl']]):.1f} |"
         )
@@ -145,6 +163,8 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
         f"- scenarios where default is >10 % worse than dead reckoning: {worse_dr}",
         f"- truth inside the 95 % ellipse, suite mean: {_m(tot['in95']):.2f} (target >= 0.90)",
         f"- smoothed below filtered on {n_smooth_better}/{len(tot['default'])} scenarios",
+        f"- re-acquisition: at most {_most_replies(results)} replies from the first rejection "
+        "to the next accepted range, over every mission",
     ]
     dvl_rows = [
         f"| {name} seed {k + 1} | {dist:.0f} | {err:.1f} ({err / dist:.1%}) "

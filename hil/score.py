@@ -35,6 +35,25 @@ class Score:
     reacquisitions: int
     fix_rms_m: float = math.nan  # the virtual-LBL / LBL least-squares fix, when published
     fix_coverage: float = 0.0  # fraction of submerged time with a fix published
+    # the most replies, over the mission's re-acquisitions, from the first gate rejection of
+    # the streak to the next accepted range ("re-acquires within a few pings")
+    reacquire_replies_max: float = math.nan
+
+
+def replies_to_reacquire(ranges: list[dict[str, Any]]) -> list[int]:
+    """Per re-acquisition: replies from the start of its rejection streak to the next accept."""
+    out: list[int] = []
+    start: int | None = None  # first gate rejection since the last accepted range
+    reacquired = False
+    for i, r in enumerate(ranges):
+        if r["accepted"]:
+            if reacquired and start is not None:
+                out.append(i - start + 1)
+            start, reacquired = None, False
+        elif str(r.get("reason", "")).startswith("gate"):
+            start = i if start is None else start
+            reacquired = reacquired or r["reason"] == "gate_reacquire"
+    return out
 
 
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
@@ -97,4 +116,7 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         reacquisitions=sum(1 for r in ranges if r.get("reason") == "gate_reacquire"),
         fix_rms_m=float(np.sqrt(np.mean(np.array(fix_errs) ** 2))) if fix_errs else math.nan,
         fix_coverage=len(fix_errs) / len(errs),
+        reacquire_replies=float(np.mean(reacq))
+        if (reacq := replies_to_reacquire(ranges))
+        else math.nan,
     )

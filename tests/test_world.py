@@ -66,3 +66,22 @@ def test_current_moves_the_vehicle() -> None:
 def test_antimeridian_scenario_crosses_the_line() -> None:
     lons = [s.lon for s in mission("antimeridian", 1).truth]
     assert max(lons) > 179.99 and min(lons) < -179.99
+
+
+def test_replies_to_reacquire_counts_from_the_first_rejection_to_the_next_accept() -> None:
+    from hil.score import replies_to_reacquire
+
+    def r(ok: bool, reason: str = "ok") -> dict:
+        return {"accepted": ok, "reason": reason}
+
+    ranges = [
+        r(True),
+        r(False, "gate"),  # a lone outlier: no re-acquisition, not counted
+        r(True),
+        r(False, "gate"),  # streak starts
+        r(False, "corrupt_position"),  # not the gate: does not start or end a streak
+        r(False, "gate"),
+        r(False, "gate_reacquire"),
+        r(True),  # 5 replies from the first rejection
+    ]
+    assert replies_to_reacquire(ranges) == [5]
