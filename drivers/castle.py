@@ -58,15 +58,17 @@ class CastleDecoder:
                 self.stats.skip(1, "checksum")
                 del self._buf[0]
                 continue
-            del self._buf[:3]
-            register = self._pending.popleft()
             raw = int.from_bytes(frame[:2], "big")
-            if register == REG_SPEED:
-                rpm = raw / _RAW_FULL * SPEED_SCALE / self.pole_pairs
-                if rpm > self.max_rpm:
-                    self.stats.bad_frame += 1
-                    self.stats.skip(3, "implausible")
-                    continue
+            rpm = raw / _RAW_FULL * SPEED_SCALE / self.pole_pairs
+            if self._pending[0] == REG_SPEED and rpm > self.max_rpm:
+                # a window that passed the check by chance, not an answer: slide over it
+                # like a bad check, and keep the request waiting for its real answer
+                self.stats.bad_frame += 1
+                self.stats.skip(1, "implausible")
+                del self._buf[0]
+                continue
+            del self._buf[:3]
+            if self._pending.popleft() == REG_SPEED:
                 out.append(Rpm(t, rpm))
                 self.stats.records += 1
         return out

@@ -223,3 +223,17 @@ def test_emulators_speak_the_golden_vectors(tmp_path) -> None:
             e.close()
 
     asyncio.run(main())
+
+
+def test_castle_slides_over_a_window_that_passes_the_check_by_chance() -> None:
+    """Headerless 3-byte answers: garbage + a cut answer can sum to zero mod 256.
+
+    Found by the fuzz test: ``fa 03 | 03 e8 15`` gives the window ``fa 03 03``, whose
+    check passes and whose value no motor reaches; it must not eat the request.
+    """
+    dec = castle.CastleDecoder()
+    dec.request_rpm()
+    recs = dec.feed(bytes.fromhex("fa0303e815"), 1.0)
+    assert [round(r.rpm) for r in recs] == [round(1000 / 2042.0 * 20416.66)]
+    st = dec.stats
+    assert st.bad_frame == 1 and st.skipped_bytes == 2 and st.bytes_in == 5
