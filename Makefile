@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon clean
+.PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -13,6 +13,13 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 venv: $(STAMP)
+
+# the property tests with fresh random examples, ten rounds (make test repeats one fixed set)
+fuzz: $(STAMP)
+	for i in 1 2 3 4 5 6 7 8 9 10; do \
+	  NAVD_HYPOTHESIS=explore $(BIN)/pytest -q -p no:cacheprovider \
+	    tests/test_fuzz.py tests/test_codecs.py tests/test_geodesy.py || exit 1; \
+	done
 
 test: $(STAMP)
 	$(BIN)/ruff check navd drivers hil tests bench
