@@ -99,6 +99,7 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
             )
         last_sub = (e, dre if dre is not None else math.nan)
     ranges = [o for o in outputs if o.get("type") == "range"]
+    reacq = replies_to_reacquire(ranges)
     if not errs:
         nan = math.nan
         return Score(nan, nan, nan, nan, nan, nan, nan, 0, 0, 0)
@@ -116,7 +117,5 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         reacquisitions=sum(1 for r in ranges if r.get("reason") == "gate_reacquire"),
         fix_rms_m=float(np.sqrt(np.mean(np.array(fix_errs) ** 2))) if fix_errs else math.nan,
         fix_coverage=len(fix_errs) / len(errs),
-        reacquire_replies=float(np.mean(reacq))
-        if (reacq := replies_to_reacquire(ranges))
-        else math.nan,
+        reacquire_replies_max=float(max(reacq)) if reacq else math.nan,
     )
