@@ -17,7 +17,7 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from bench.common import mode_config, write_section
+from bench.common import mode_config, report
 from hil.scenario import list_scenarios, load_scenario
 from hil.score import Score, read_jsonl, score
 from hil.sim_cli import write_mission
@@ -205,9 +205,7 @@ def main() -> int:
                 file=sys.stderr,
             )
     body = table(results, seeds)
-    print(body)
-    if args.write:
-        write_section(Path(args.write), "bench-accuracy", "Accuracy (`make bench-accuracy`)", body)
+    report(body, args.write, "bench-accuracy", "Accuracy")
     return 0
 
 

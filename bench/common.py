@@ -25,3 +25,10 @@ def write_section(path: Path, name: str, heading: str, body: str) -> None:
     else:
         text = text.rstrip() + f"\n\n## {heading}\n\n" + section + "\n"
     path.write_text(text)
+
+
+def report(body: str, write: str | None, target: str, title: str) -> None:
+    """Print a benchmark's section and, with ``--write FILE``, put it under ``## title``."""
+    print(body)
+    if write:
+        write_section(Path(write), target, f"{title} (`make {target}`)", body)

@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.common import write_section
+from bench.common import report
 from hil.bench_vehicle import BenchVehicle
 
 
@@ -75,9 +75,7 @@ def main() -> int:
             "(0 to 100 ms) to appear in a published estimate.",
         ]
     )
-    print(body)
-    if args.write:
-        write_section(Path(args.write), "bench-daemon", "Daemon (`make bench-daemon`)", body)
+    report(body, args.write, "bench-daemon", "Daemon")
     return 0
 
 

@@ -15,7 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.common import write_section
+from bench.common import report
 from drivers import ahrs, castle, gps, keller, modem
 from hil.emulators.ahrs import AhrsEmulator
 from hil.emulators.gps import GpsEmulator
@@ -82,9 +82,7 @@ def main() -> int:
             "Target: the AHRS at 100 Hz well under 1 % of a core.",
         ]
     )
-    print(body)
-    if args.write:
-        write_section(Path(args.write), "bench-decode", "Decoding cost (`make bench-decode`)", body)
+    report(body, args.write, "bench-decode", "Decoding cost")
     return 0
 
 

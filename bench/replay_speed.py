@@ -15,7 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.common import mode_config, write_section
+from bench.common import mode_config, report
 from hil.scenario import load_scenario
 from hil.sim_cli import write_mission
 from hil.world import simulate
@@ -68,9 +68,7 @@ def main() -> int:
             "Target: under 5 s for 36,000 filter steps and 360 pings.",
         ]
     )
-    print(body)
-    if args.write:
-        write_section(Path(args.write), "bench-replay", "Replay speed (`make bench-replay`)", body)
+    report(body, args.write, "bench-replay", "Replay speed")
     return 0
 
 

@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from bench.accuracy import replay
-from bench.common import write_section
+from bench.common import report
 from hil.scenario import Scenario, load_scenario
 from hil.score import read_jsonl, score
 from hil.sim_cli import write_mission
@@ -97,11 +97,7 @@ def main() -> int:
         de = statistics.mean(r[1] for r in rows[label])
         lines.append(f"| {label} | {dr:.1f} | {de:.1f} | {de / dr:.2f} |")
     body = "\n".join(lines)
-    print(body)
-    if args.write:
-        write_section(
-            Path(args.write), "bench-sensitivity", "Sensitivity (`make bench-sensitivity`)", body
-        )
+    report(body, args.write, "bench-sensitivity", "Sensitivity")
     return 0
 
 
