@@ -45,6 +45,7 @@ def main() -> int:
         pass
     finally:
         v.stop()
+        navd_err.close()
     logfile = v.logfile()
     t0 = v.t0_monotonic
     with (veh / "truth.jsonl").open() as src, (out / "truth_monotonic.jsonl").open("w") as dst:
