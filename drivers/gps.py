@@ -1,9 +1,11 @@
 """GPS receiver (Linx RXM-GPS-R4 and any NMEA 0183 receiver): GGA and RMC, sans-I/O.
 
 Sentences are ``$<talker><type>,...*hh<CR><LF>`` (NMEA 0183 v3, docs/protocols.md);
-pynmea2 parses them.  GGA gives the fix: quality 0 none, 1 GPS, 2 DGPS (others count
-as GPS), altitude above mean sea level plus the geoid separation, which makes the
-ellipsoidal height the filter wants.  Empty fields before a fix give a ``fix 0``
+pynmea2 parses them.  GGA gives the fix: quality 0 none, 1 GPS, 2 DGPS and the
+differential kinds (6 estimated, 7 manual and 8 simulator are not fixes), and
+altitude above mean sea level plus the geoid separation, which makes the
+ellipsoidal height the filter wants.  Every number is held to the bounds of
+``navd.records.BOUNDS`` and hemispheres must be given.  Empty fields before a fix give a ``fix 0``
 record.  RMC gives UTC date and time and the receiver's validity flag.
 """
 
@@ -15,9 +17,12 @@ from dataclasses import dataclass
 import pynmea2
 
 from drivers.codec import DecodeStats
-from navd.records import Gps
+from navd.records import Gps, implausible
 
 _MAX_LINE = 120  # NMEA allows 82 characters; anything much longer is garbage
+# GGA quality (field 6) to the record's fix: 1 GPS, 3 PPS; 2 DGPS, 4 RTK fixed, 5 RTK
+# float, 9 WAAS (all differential).  6 estimated, 7 manual and 8 simulator are not fixes.
+_FIX_OF_QUALITY = {1: 1, 3: 1, 2: 2, 4: 2, 5: 2, 9: 2}
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,18 +109,32 @@ class NmeaDecoder:
         self.stats.reasons["ignored_" + kind] = self.stats.reasons.get("ignored_" + kind, 0) + 1
         return None
 
-    def _gga(self, msg: pynmea2.GGA, t: float) -> Gps:
+    def _gga(self, msg: pynmea2.GGA, t: float) -> Gps | None:
         quality = int(msg.gps_qual or 0)
         hdop = _f(msg.horizontal_dil)
-        if quality == 0 or not msg.lat or not msg.lon:
+        fix = _FIX_OF_QUALITY.get(quality, 0)
+        if quality not in _FIX_OF_QUALITY and quality != 0:
+            # 6 estimated (dead reckoning), 7 manual input, 8 simulator: not a position fix
+            self.stats.reasons[f"quality_{quality}"] = (
+                self.stats.reasons.get(f"quality_{quality}", 0) + 1
+            )
+        if fix == 0 or not msg.lat or not msg.lon:
             return Gps(t, None, None, None, 0, hdop)
+        if msg.lat_dir not in ("N", "S") or msg.lon_dir not in ("E", "W"):
+            # pynmea2 reads a missing hemisphere as north/east: that would be a fix at
+            # the wrong place (or 0, 0), so the sentence is refused
+            self.stats.bad("bad_hemisphere")
+            return None
         lat, lon = float(msg.latitude), float(msg.longitude)
-        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-            raise ValueError("position out of range")
         alt = _f(msg.altitude)
         sep = _f(msg.geo_sep)
         h = None if alt is None else alt + (sep or 0.0)
-        return Gps(t, lat, lon, h, 2 if quality == 2 else 1, hdop)
+        rec = Gps(t, lat, lon, h, fix, hdop)
+        why = implausible(rec)
+        if why is not None:
+            self.stats.bad("implausible")
+            return None
+        return rec
 
     def _rmc(self, msg: pynmea2.RMC, t: float) -> GpsTime:
         utc = None

@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from drivers.codec import FrameDecoder
-from navd.records import Pressure
+from navd.records import Pressure, implausible
 
 F_INIT = 48
 F_READ_FLOAT = 73
@@ -108,9 +108,13 @@ class KellerDecoder(FrameDecoder):
             return DeviceInfo(t, f[2], f[3], f[4], f[5])
         (value,) = struct.unpack(">f", f[2:6])
         channel = self._pending.popleft() if self._pending else CH_PRESSURE
-        if value != value or abs(value) > 1e6:  # NaN or absurd: the sensor says nonsense
+        if channel == CH_TEMPERATURE:
+            if not -60.0 <= value <= 150.0:  # NaN fails too: the sensor says nonsense
+                self.stats.bad("bad_value")
+                return None
+            return Temperature(t, value)
+        rec = Pressure(t, value)
+        if implausible(rec) is not None:  # the log reader's bounds: live and replay agree
             self.stats.bad("bad_value")
             return None
-        if channel == CH_TEMPERATURE:
-            return Temperature(t, value)
-        return Pressure(t, value)
+        return rec

@@ -98,7 +98,12 @@ class Bench:
         d.mkdir(parents=True, exist_ok=True)
         crew = crew_config(self.sc)
         cfg = daemon_config(crew, d, zenoh_port)
-        self.site = config_from_dict(cfg).site  # also proves the generated config valid
+        parsed = config_from_dict(cfg)  # also proves the generated config valid
+        self.site = parsed.site
+        self.baud = {
+            n: getattr(parsed.devices, n).baudrate
+            for n in ("ahrs", "gps", "pressure", "motor", "modem")
+        }
         (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
         with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
             for s in self.mission.truth:
@@ -114,12 +119,19 @@ class Bench:
         d = self.dir
         self.t0 = time.monotonic()
         (d / "clock.json").write_text(json.dumps({"t0_monotonic": self.t0, "speed": self.speed}))
+        # every emulator paces its output at the daemon's configured line speed
+        b = self.baud
         emus = {
-            "ahrs": AhrsEmulator(d / "ahrs", seed=1),
-            "gps": GpsEmulator(d / "gps", seed=2),
-            "pressure": KellerEmulator(d / "pressure", addr=1, seed=3),
-            "motor": CastleEmulator(d / "motor", seed=4),
-            "modem": ModemEmulator(d / "modem", modem_range_fn(self.mission, self.t0), seed=5),
+            "ahrs": AhrsEmulator(d / "ahrs", seed=1, baudrate=b["ahrs"]),
+            "gps": GpsEmulator(d / "gps", seed=2, baudrate=b["gps"]),
+            "pressure": KellerEmulator(d / "pressure", addr=1, seed=3, baudrate=b["pressure"]),
+            "motor": CastleEmulator(d / "motor", seed=4, baudrate=b["motor"]),
+            "modem": ModemEmulator(
+                d / "modem",
+                modem_range_fn(self.mission, self.t0),
+                seed=5,
+                baudrate=b["modem"],
+            ),
         }
         gps_emu: GpsEmulator = emus["gps"]  # type: ignore[assignment]
         gps_emu.start()

@@ -65,6 +65,9 @@ WGS84 = Ellipsoid(a=6378137.0, f=1.0 / 298.257223563)
 # Maximum length of one Runge-Kutta substep in :func:`destination`.  The local
 # truncation error scales as (step / R)^5 R: 5 km gives ~1e-7 m.
 _RK_STEP_M = 5000.0
+# Once round the Earth in RK steps: a longer path can only come from a corrupt input,
+# and walking it must still take bounded time (1e300 m would never finish).
+_RK_MAX_STEPS = 8100
 # Shorter moves (every filter step) take one midpoint step instead of RK4.
 _MIDPOINT_MAX_M = 50.0
 
@@ -201,7 +204,9 @@ def destination(
             wrap_lon(lon + distance * k2[1]),
             azimuth + distance * k2[2],
         )
-    steps = max(1, math.ceil(abs(distance) / _RK_STEP_M))
+    if not math.isfinite(distance):
+        return math.nan, math.nan, math.nan
+    steps = min(_RK_MAX_STEPS, max(1, math.ceil(abs(distance) / _RK_STEP_M)))
     h = distance / steps
     la, lo, az = lat, lon, azimuth
     for _ in range(steps):

@@ -17,6 +17,7 @@ from typing import IO, Any
 
 from navd import jsonlines
 from navd.records import (
+    MAX_LATE_S,
     TYPE_NAMES,
     Attitude,
     Depth,
@@ -30,13 +31,17 @@ from navd.records import (
     SetBeacon,
     TravelTime,
     Velocity,
+    implausible,
 )
 
 FORMAT = "navd-measurements"
 #: what the daemon's own log holds besides measurements; replay passes over them
 LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "event"})
-MAX_ABS_T = 1e9  # about 30 years of seconds: beyond it a time stamp is corrupt, not a mission
 VERSION = 1
+#: a longer step forward between two records is checked against the record after it
+JUMP_S = 60.0
+#: no record is anywhere near this long; a longer line is skipped without parsing it
+MAX_LINE_CHARS = 65536
 
 __all__ = ["LogError", "Skipped", "MeasurementLog", "read_measurement_log", "MeasurementWriter"]
 
@@ -62,7 +67,8 @@ class _Bad(Exception):
     pass
 
 
-def _num(obj: dict, key: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+def _num(obj: dict, key: str) -> float:
+    """A number field; its bounds are checked on the whole record (records.implausible)."""
     if key not in obj:
         raise _Bad(f"missing field '{key}'")
     v = obj[key]
@@ -70,15 +76,13 @@ def _num(obj: dict, key: str, lo: float = -math.inf, hi: float = math.inf) -> fl
         raise _Bad(f"field '{key}' must be a number, got {type(v).__name__}")
     if not math.isfinite(v):
         raise _Bad(f"field '{key}' is not finite")
-    if not lo <= v <= hi:
-        raise _Bad(f"field '{key}'={v!r} outside [{lo:g}, {hi:g}]")
     return float(v)
 
 
-def _opt(obj: dict, key: str, lo: float = -math.inf, hi: float = math.inf) -> float | None:
+def _opt(obj: dict, key: str) -> float | None:
     if obj.get(key) is None:
         return None
-    return _num(obj, key, lo, hi)
+    return _num(obj, key)
 
 
 def _str(obj: dict, key: str) -> str:
@@ -89,44 +93,26 @@ def _str(obj: dict, key: str) -> str:
 
 
 def _beacon_fields(obj: dict) -> tuple[float | None, float | None, float | None]:
-    return (
-        _opt(obj, "beacon_lat", -90.0, 90.0),
-        _opt(obj, "beacon_lon", -180.0, 180.0),
-        _opt(obj, "beacon_depth", -100.0, 11000.0),
-    )
-
-
-def _ping_time(obj: dict, t: float) -> float:
-    tp = _num(obj, "t_ping", -MAX_ABS_T, MAX_ABS_T)
-    if tp > t:
-        raise _Bad("t_ping is after t")
-    return tp
+    return _opt(obj, "beacon_lat"), _opt(obj, "beacon_lon"), _opt(obj, "beacon_depth")
 
 
 def _parse_gps(o: dict, t: float) -> Gps:
     fix = o.get("fix")
     if isinstance(fix, bool) or not isinstance(fix, int) or fix not in (0, 1, 2):
         raise _Bad("field 'fix' must be 0, 1 or 2")
-    hdop = _opt(o, "hdop", 0.0, 1000.0)
+    hdop = _opt(o, "hdop")
     if fix == 0:
         return Gps(t, None, None, None, 0, hdop)
-    return Gps(
-        t,
-        _num(o, "lat", -90.0, 90.0),
-        _num(o, "lon", -180.0, 180.0),
-        _opt(o, "alt", -1000.0, 10000.0),
-        fix,
-        hdop,
-    )
+    return Gps(t, _num(o, "lat"), _num(o, "lon"), _opt(o, "alt"), fix, hdop)
 
 
 def _parse_range(o: dict, t: float) -> Range:
-    return Range(t, _ping_time(o, t), _num(o, "m", 0.0, 1e6), _str(o, "beacon"), *_beacon_fields(o))
+    return Range(t, _num(o, "t_ping"), _num(o, "m"), _str(o, "beacon"), *_beacon_fields(o))
 
 
 def _parse_tt(o: dict, t: float) -> TravelTime:
     return TravelTime(
-        t, _ping_time(o, t), _num(o, "twtt_s", 0.0, 1e3), _str(o, "beacon"), *_beacon_fields(o)
+        t, _num(o, "t_ping"), _num(o, "twtt_s"), _str(o, "beacon"), *_beacon_fields(o)
     )
 
 
@@ -136,8 +122,8 @@ _PARSERS = {
         t, _num(o, "roll_deg"), _num(o, "pitch_deg"), _num(o, "yaw_deg")
     ),
     "rpm": lambda o, t: Rpm(t, _num(o, "rpm")),
-    "depth": lambda o, t: Depth(t, _num(o, "m", -100.0, 11000.0)),
-    "pressure": lambda o, t: Pressure(t, _num(o, "bar", 0.0, 2000.0)),
+    "depth": lambda o, t: Depth(t, _num(o, "m")),
+    "pressure": lambda o, t: Pressure(t, _num(o, "bar")),
     "gps": _parse_gps,
     "range": _parse_range,
     "travel_time": _parse_tt,
@@ -146,9 +132,9 @@ _PARSERS = {
     "cmd_beacon": lambda o, t: SetBeacon(
         t,
         _str(o, "beacon"),
-        _num(o, "lat", -90.0, 90.0),
-        _num(o, "lon", -180.0, 180.0),
-        _opt(o, "depth", 0.0, 11000.0) or 0.0,
+        _num(o, "lat"),
+        _num(o, "lon"),
+        _opt(o, "depth") or 0.0,
     ),
 }
 
@@ -162,7 +148,11 @@ def parse_record(obj: Any) -> Record:
         parser = _PARSERS.get(kind) if isinstance(kind, str) else None
         if parser is None:
             raise _Bad(f"unknown record type {kind!r}")
-        return parser(obj, _num(obj, "t", -MAX_ABS_T, MAX_ABS_T))
+        rec = parser(obj, _num(obj, "t"))
+        why = implausible(rec)
+        if why is not None:
+            raise _Bad(why)
+        return rec
     except _Bad as exc:
         raise ValueError(str(exc)) from None
 
@@ -180,9 +170,24 @@ def _check_header(obj: Any) -> dict[str, Any]:
 def iter_lines(
     lines: Iterable[str], strict: bool = False
 ) -> Iterator[tuple[int, Record | Skipped]]:
-    """Records (or skips) from the lines after the header, numbered from 2."""
+    """Records (or skips) from the lines after the header, numbered from 2.
+
+    Time must not go back, except for a range completed up to ``MAX_LATE_S`` after
+    the records behind its first byte (the daemon logs it when complete).  A record
+    more than ``JUMP_S`` ahead of the one before is held until the next one shows
+    whether time really moved on (a gap in the log) or that record is corrupt; a
+    corrupt one is skipped, not made the new clock that every later line would
+    then go back from.
+    """
     last_t = -math.inf
+    held: tuple[int, Record] | None = None
     for no, raw in enumerate(lines, start=2):
+        if len(raw) > MAX_LINE_CHARS:
+            reason = f"line longer than {MAX_LINE_CHARS} characters"
+            if strict:
+                raise LogError(f"line {no}: {reason}")
+            yield no, Skipped(no, reason)
+            continue
         line = raw.strip()
         if not line:
             continue
@@ -194,15 +199,50 @@ def iter_lines(
             if isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
                 continue
             rec = parse_record(obj)
-            if rec.t < last_t:
+            if held is not None:
+                h_no, h_rec = held
+                held = None
+                if rec.t >= h_rec.t - MAX_LATE_S:
+                    last_t = h_rec.t
+                    yield h_no, h_rec
+                else:
+                    why = f"t={h_rec.t:g} is far out of line (before {last_t:g}, after {rec.t:g})"
+                    if strict:
+                        raise LogError(f"line {h_no}: {why}")
+                    yield h_no, Skipped(h_no, why)
+            late_ok = MAX_LATE_S if isinstance(rec, Range | TravelTime) else 0.0
+            if rec.t < last_t - late_ok:
                 raise ValueError(f"t={rec.t:g} goes back in time (previous {last_t:g})")
         except ValueError as exc:
             if strict:
                 raise LogError(f"line {no}: {exc}") from None
             yield no, Skipped(no, str(exc))
             continue
-        last_t = rec.t
+        if math.isfinite(last_t) and rec.t - last_t > JUMP_S:
+            held = (no, rec)
+            continue
+        last_t = max(last_t, rec.t)
         yield no, rec
+    if held is not None:
+        yield held
+
+
+def _bounded_lines(fh: IO[str]) -> Iterator[str]:
+    """The file's lines, none held longer than ``MAX_LINE_CHARS + 1`` characters.
+
+    A longer line is cut there (so the reader skips it) and the rest of it is read
+    past in bounded pieces: one corrupt line must not cost the memory of its length.
+    """
+    while True:
+        line = fh.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        if len(line) > MAX_LINE_CHARS and not line.endswith("\n"):
+            while True:
+                rest = fh.readline(MAX_LINE_CHARS)
+                if not rest or rest.endswith("\n"):
+                    break
+        yield line
 
 
 def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementLog:
@@ -213,7 +253,7 @@ def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementL
         raise LogError(f"{p}: cannot open ({exc.strerror or exc})") from None
     try:
         with fh:
-            first = fh.readline()
+            first = fh.readline(MAX_LINE_CHARS)
             if not first:
                 raise LogError(f"{p}: empty file, expected a measurement log header")
             try:
@@ -222,7 +262,7 @@ def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementL
                 raise LogError(f"{p}: line 1: header is not valid JSON") from None
             records: list[Record] = []
             skipped: list[Skipped] = []
-            for _, item in iter_lines(fh, strict):
+            for _, item in iter_lines(_bounded_lines(fh), strict):
                 if isinstance(item, Skipped):
                     skipped.append(item)
                 else:

@@ -8,7 +8,15 @@ radians at its edge.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields
+
+#: How long after its first byte a measurement may still be completing.  A Benthos
+#: range is stamped when its ``Range`` line arrives but is complete only with the
+#: location line behind it (53 bytes: 55 ms at 9600 baud, 0.44 s at 1200); other
+#: sensors' records arrive meanwhile.  Such a record is fused at its own time; one
+#: later than this is out of order.
+MAX_LATE_S = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,3 +141,58 @@ TYPE_NAMES: dict[type, str] = {
     Reset: "cmd_reset",
     SetBeacon: "cmd_beacon",
 }
+
+
+#: What each measured quantity can physically be: the decoders, the log reader and the
+#: navigator all refuse a record with a value outside (or not finite), so the live
+#: daemon and a replay of its log agree.  Keyed by (record type, field).
+BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
+    (Heading, "deg"): (-360.0, 360.0),
+    (Attitude, "roll_deg"): (-360.0, 360.0),
+    (Attitude, "pitch_deg"): (-360.0, 360.0),
+    (Attitude, "yaw_deg"): (-360.0, 360.0),
+    (Rpm, "rpm"): (-100_000.0, 100_000.0),
+    (Depth, "m"): (-100.0, 11_000.0),
+    (Pressure, "bar"): (0.0, 2000.0),
+    (Gps, "lat"): (-90.0, 90.0),
+    (Gps, "lon"): (-180.0, 180.0),
+    (Gps, "alt"): (-1000.0, 10_000.0),
+    (Gps, "hdop"): (0.0, 1000.0),
+    (Range, "m"): (0.0, 1e6),
+    (TravelTime, "twtt_s"): (0.0, 1e3),
+    (Range, "beacon_lat"): (-90.0, 90.0),
+    (Range, "beacon_lon"): (-180.0, 180.0),
+    (Range, "beacon_depth"): (-100.0, 11_000.0),
+    (TravelTime, "beacon_lat"): (-90.0, 90.0),
+    (TravelTime, "beacon_lon"): (-180.0, 180.0),
+    (TravelTime, "beacon_depth"): (-100.0, 11_000.0),
+    (Velocity, "u"): (-50.0, 50.0),
+    (Velocity, "v"): (-50.0, 50.0),
+    (Velocity, "w"): (-50.0, 50.0),
+    (SetBeacon, "lat"): (-90.0, 90.0),
+    (SetBeacon, "lon"): (-180.0, 180.0),
+    (SetBeacon, "depth"): (0.0, 11_000.0),
+}
+#: a time stamp beyond about 30 years of seconds is corrupt, not a mission
+MAX_ABS_T = 1e9
+
+
+def implausible(rec: object) -> str | None:
+    """Why ``rec`` cannot be a measurement (a field out of its bounds), or None."""
+    cls = type(rec)
+    for f in fields(rec):  # type: ignore[arg-type]
+        v = getattr(rec, f.name)
+        if v is None or isinstance(v, str):
+            continue
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            return f"field '{f.name}' is not a finite number"
+        if f.name in ("t", "t_ping"):
+            lo, hi = -MAX_ABS_T, MAX_ABS_T
+        else:
+            lo, hi = BOUNDS.get((cls, f.name), (-math.inf, math.inf))
+        if not lo <= v <= hi:
+            return f"field '{f.name}'={v!r} outside [{lo:g}, {hi:g}]"
+    t_ping = getattr(rec, "t_ping", None)
+    if t_ping is not None and t_ping > rec.t:  # type: ignore[attr-defined]
+        return "t_ping is after t"
+    return None

@@ -47,6 +47,13 @@ def write_outputs(outputs: list[dict[str, Any]], fh: IO[str]) -> None:
     fh.writelines(jsonlines.dumps_line(o) for o in outputs)
 
 
+def _is_empty(path: str | Path) -> bool:
+    try:
+        return Path(path).stat().st_size == 0
+    except OSError:
+        return False  # the reader says why it cannot open it
+
+
 def replay(
     input_path: str | Path | list[str | Path],
     cfg: Config,
@@ -59,6 +66,10 @@ def replay(
     paths = input_path if isinstance(input_path, list) else [input_path]
     log = MeasurementLog({}, [], [])
     for path in paths:
+        if len(paths) > 1 and _is_empty(path):
+            # a daemon that hit a full disk can leave an empty file among its logs
+            print(f"{path}: empty file, passed over", file=err)
+            continue
         part = read_measurement_log(path, strict=strict)
         log.header = log.header or part.header
         log.records.extend(part.records)

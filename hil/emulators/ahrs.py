@@ -14,8 +14,8 @@ def _with_sum(body: bytes) -> bytes:
 
 
 class AhrsEmulator(Emulator):
-    def __init__(self, path, seed: int = 0) -> None:
-        super().__init__(path, seed)
+    def __init__(self, path, seed: int = 0, baudrate: int | None = None) -> None:
+        super().__init__(path, seed, baudrate)
         self.roll_deg = 0.0
         self.pitch_deg = 0.0
         self.yaw_deg = 0.0  # magnetic, as the device reports

@@ -24,10 +24,10 @@ class Faults:
 
 
 class Emulator:
-    def __init__(self, path: str | Path, seed: int = 0) -> None:
+    def __init__(self, path: str | Path, seed: int = 0, baudrate: int | None = None) -> None:
         self.faults = Faults()
         self.rng = random.Random(seed)
-        self.port = PtyPort(path, self.on_bytes)
+        self.port = PtyPort(path, self.on_bytes, baudrate)
         self.frames_sent = 0
         self._tasks: list[asyncio.Task[None]] = []
 

@@ -6,8 +6,10 @@ from hil.emulators.base import Emulator
 
 
 class CastleEmulator(Emulator):
-    def __init__(self, path, pole_pairs: int = 1, seed: int = 0) -> None:
-        super().__init__(path, seed)
+    def __init__(
+        self, path, pole_pairs: int = 1, seed: int = 0, baudrate: int | None = None
+    ) -> None:
+        super().__init__(path, seed, baudrate)
         self.rpm = 0.0  # propeller (mechanical) RPM
         self.pole_pairs = pole_pairs
         self._rx = bytearray()

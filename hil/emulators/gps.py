@@ -22,8 +22,10 @@ def _dm(value: float, is_lat: bool) -> tuple[str, str]:
 
 
 class GpsEmulator(Emulator):
-    def __init__(self, path, seed: int = 0, rate_hz: float = 1.0) -> None:
-        super().__init__(path, seed)
+    def __init__(
+        self, path, seed: int = 0, rate_hz: float = 1.0, baudrate: int | None = None
+    ) -> None:
+        super().__init__(path, seed, baudrate)
         self.lat: float | None = None  # None: no fix
         self.lon: float | None = None
         self.alt_msl = 0.0

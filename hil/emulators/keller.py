@@ -21,8 +21,8 @@ def _crc(data: bytes) -> bytes:
 
 
 class KellerEmulator(Emulator):
-    def __init__(self, path, addr: int = 250, seed: int = 0) -> None:
-        super().__init__(path, seed)
+    def __init__(self, path, addr: int = 250, seed: int = 0, baudrate: int | None = None) -> None:
+        super().__init__(path, seed, baudrate)
         self.addr = addr
         self.pressure_bar = 1.01325
         self.temperature_c = 12.0

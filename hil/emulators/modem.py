@@ -18,9 +18,15 @@ RangeFn = Callable[[float], tuple[float, float, float | None, float | None, floa
 
 class ModemEmulator(Emulator):
     def __init__(
-        self, path, range_to: RangeFn, own_addr: int = 1, seed: int = 0, timeout_s: float = 4.0
+        self,
+        path,
+        range_to: RangeFn,
+        own_addr: int = 1,
+        seed: int = 0,
+        timeout_s: float = 4.0,
+        baudrate: int | None = None,
     ) -> None:
-        super().__init__(path, seed)
+        super().__init__(path, seed, baudrate)
         self.range_to = range_to
         self.own_addr = own_addr
         self.timeout_s = timeout_s

@@ -217,10 +217,17 @@ class RangeEKF:
 
     # -- range update ------------------------------------------------------------------
     def predicted_range(self, m: RangeMeas) -> tuple[float, np.ndarray]:
-        """Mean of the out and back legs of the round trip, and its Jacobian."""
+        """Mean of the out and back legs of the round trip, and its Jacobian.
+
+        The filter may already be past ``m.t`` (a reply completes only after its
+        location line): both ends are found by undoing the dead-reckoned motion
+        since them, so a late range is fused at its own time.
+        """
         lat, lon = float(self.x[0]), float(self.x[1])
-        dn, de = self._displacement_since(m.t_ping)
-        lat_p, lon_p = geodesy.offset_position(lat, lon, -dn, -de, m.vehicle_hd)
+        dn_p, de_p = self._displacement_since(m.t_ping)
+        dn_b, de_b = self._displacement_since(m.t)
+        lat_p, lon_p = geodesy.offset_position(lat, lon, -dn_p, -de_p, m.vehicle_hd)
+        lat_b, lon_b = geodesy.offset_position(lat, lon, -dn_b, -de_b, m.vehicle_hd)
         tracked = m.beacon == self.primary
         b_lat, b_lon = m.beacon_lat, m.beacon_lon
         if tracked:
@@ -229,18 +236,19 @@ class RangeEKF:
                 b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd
             )
         r_back, gn_b, ge_b = geodesy.range_and_gradient(
-            lat, lon, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
+            lat_b, lon_b, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
         )
         r_out, gn_o, ge_o = geodesy.range_and_gradient(
             lat_p, lon_p, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
         )
-        lag = m.t - m.t_ping
+        # each end lies (now - its time) seconds of current drift behind the estimate
+        lag_o = max(0.0, self.t - m.t_ping)
+        lag_b = max(0.0, self.t - m.t)
         H = np.zeros(N_STATES)
         H[0] = 0.5 * (gn_o + gn_b)
         H[1] = 0.5 * (ge_o + ge_b)
-        # the ping end lies lag seconds of current drift behind the current estimate
-        H[2] = -0.5 * lag * gn_o
-        H[3] = -0.5 * lag * ge_o
+        H[2] = -0.5 * (lag_o * gn_o + lag_b * gn_b)
+        H[3] = -0.5 * (lag_o * ge_o + lag_b * ge_b)
         if tracked:
             # moving the beacon moves the range like moving the vehicle the other way
             H[6] = -H[0]

@@ -29,6 +29,7 @@ from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
 from navd.filter.vlblmode import VlblMode
 from navd.records import (
+    MAX_LATE_S,
     Attitude,
     Depth,
     Gps,
@@ -41,6 +42,7 @@ from navd.records import (
     SetBeacon,
     TravelTime,
     Velocity,
+    implausible,
 )
 from navd.vlbl import NetRange, VirtualNet
 
@@ -112,11 +114,19 @@ class Navigator:
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
         """Consume one record; return the outputs (ticks before it, its decision)."""
-        t = rec.t
-        if not math.isfinite(t) or abs(t) > 1e9:
-            self.counters["skipped_bad_time"] += 1
+        why = implausible(rec)
+        if why is not None:
+            # the decoders and the log reader refuse these already; records made by
+            # other callers get the same test, so no value can blow up a step
+            self.counters["skipped_implausible"] += 1
             return []
+        t = rec.t
         if self._t_filter is not None and t < self._t_filter:
+            if isinstance(rec, Range | TravelTime) and self._t_filter - t <= MAX_LATE_S:
+                # completed after records that arrived behind its first byte: fuse it
+                # at its own time (the filter's round-trip geometry looks back to t)
+                self.counters["ranges_late"] += 1
+                return [self._on_range(rec)]
             self.counters["skipped_out_of_order"] += 1
             return []
         if self._t_filter is not None and t - self._t_filter > self.nav.max_gap_s:
