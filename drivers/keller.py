@@ -28,6 +28,9 @@ F_INIT = 48
 F_READ_FLOAT = 73
 CH_PRESSURE = 1
 CH_TEMPERATURE = 4
+# exception code 32: the device has not been initialised (after a power blip); F48 again
+# (LSTS DUNE, Sensors/Keller)
+E_NOT_INITIALISED = 32
 _LENGTHS = {F_INIT: 10, F_READ_FLOAT: 9, F_INIT | 0x80: 5, F_READ_FLOAT | 0x80: 5}
 
 
@@ -103,6 +106,8 @@ class KellerDecoder(FrameDecoder):
     def _parse(self, f: bytes, t: float) -> object | None:
         fn = f[1]
         if fn & 0x80:
+            if fn & 0x7F == F_READ_FLOAT and self._pending:
+                self._pending.popleft()  # that request is answered: the next is another's
             return DeviceError(t, fn & 0x7F, f[2])
         if fn == F_INIT:
             return DeviceInfo(t, f[2], f[3], f[4], f[5])

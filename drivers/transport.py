@@ -14,7 +14,7 @@ import contextlib
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import serial
 
@@ -33,6 +33,10 @@ class PortHealth:
     last_rx: float | None = None  # monotonic time of the last byte
     last_record: float | None = None
     last_error: str = ""
+    # exceptions raised by the decoder or the record handler, by kind; each is caught
+    # so the rest of the chunk is still delivered (a bug must not lose a port)
+    internal_errors: dict[str, int] = field(default_factory=dict)
+    last_internal_error: float | None = None
 
 
 class SerialTransport:
@@ -124,9 +128,25 @@ class SerialTransport:
             return
         t = self.clock()
         self.health.last_rx = t
-        for rec in self.decoder.feed(data, t):
+        try:
+            records = self.decoder.feed(data, t)
+        except Exception as exc:  # a decoder bug: count it, lose this chunk, keep the port
+            self._internal_error("decoder", exc, t)
+            return
+        for rec in records:
             self.health.last_record = t
-            self.on_record(rec)
+            try:
+                self.on_record(rec)
+            except Exception as exc:  # the handler's bug must not cost the chunk's other records
+                self._internal_error("handler", exc, t)
+
+    def _internal_error(self, where: str, exc: Exception, t: float) -> None:
+        kind = f"{where}: {exc.__class__.__name__}"
+        n = self.health.internal_errors.get(kind, 0)
+        self.health.internal_errors[kind] = n + 1
+        self.health.last_internal_error = t
+        if n == 0:  # once per kind: a repeating bug must not flood the journal
+            log.error("%s: %s raised (counted in health)", self.port, kind, exc_info=exc)
 
     def _lose(self) -> None:
         ser = self._ser

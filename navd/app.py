@@ -26,6 +26,7 @@ from drivers.codec import DecodeStats
 from drivers.transport import SerialTransport
 from navd.config import Config
 from navd.filter import Navigator
+from navd.health import RECENT_S, Vitals
 from navd.log import RecordLog
 from navd.records import Gps, Pressure, Range, Reset, Rpm, SetBeacon
 from navd.sdnotify import Notifier
@@ -56,6 +57,8 @@ class DeviceState:
     decoder: Any = None
     records: int = 0
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=2000))
+    device_errors: int = 0  # the device answered with an error (Keller exception codes)
+    t_device_error: float | None = None
 
 
 def _percentile(xs: list[float], q: float) -> float | None:
@@ -90,6 +93,7 @@ class Daemon:
         self.pings = {
             "sent": 0,
             "ranges": 0,
+            "fused": 0,  # range decisions the filter made: every range should get one
             "no_reply": 0,
             "timeouts": 0,
             "errors": 0,
@@ -101,19 +105,50 @@ class Daemon:
         self.temperature_c: float | None = None
         self.events: deque[str] = deque(maxlen=20)
         self._last_watchdog = -math.inf
+        m = cfg.devices.modem
+        self.vitals = Vitals(
+            cfg.navigation.rate_hz,
+            m.ping_interval_s,
+            max(cfg.navigation.stale_input_s, 2.0),
+            t_started=clock(),
+        )
+        # exceptions of the navigator, by kind: caught so one bad record cannot stop
+        # the daemon, logged once, shown in health
+        self.internal_errors: dict[str, int] = {}
+        self._t_internal_error: float | None = None
 
     # -- records in ------------------------------------------------------------------
     def feed(self, rec: Any) -> None:
         """A measurement, stamped with its arrival, to the log and the filter."""
         self.rlog.record(rec)
-        self._outputs(self.nav.feed(rec))
+        try:
+            outs = self.nav.feed(rec)
+        except Exception as exc:
+            self._navigator_failed(exc)
+            return
+        self._outputs(outs)
+
+    def _navigator_failed(self, exc: Exception) -> None:
+        # The core is meant to be total (tests/test_navigator_total.py); if it still
+        # raises, its state may be half updated, so it starts again from the next fix.
+        kind = f"navigator: {exc.__class__.__name__}"
+        n = self.internal_errors.get(kind, 0)
+        self.internal_errors[kind] = n + 1
+        self._t_internal_error = self.clock()
+        if n == 0:
+            log.error("%s raised; restarting the filter (counted in health)", kind, exc_info=exc)
+        self.nav.restart("internal_error")
 
     def _outputs(self, outs: list[dict[str, Any]]) -> None:
         for o in outs:
             self.rlog.output(o)
             if o["type"] == "estimate":
                 self._publish_estimate(o)
-            elif self.pub is not None:
+                continue
+            self.pings["fused"] += 1
+            if o.get("accepted"):
+                self.vitals.range_accepted(self.clock())
+            if self.pub is not None:
                 self.pub.put("range", o)
 
     def _publish_estimate(self, est: dict[str, Any]) -> None:
@@ -121,6 +156,7 @@ class Daemon:
         body["t_mono"] = body.pop("t")
         body["t_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
         self.latest = body
+        self.vitals.estimate(self.clock())
         if self.pub is not None:
             self.pub.put("estimate", body)
         self.publish_latency.append(self.clock() - est["t"])
@@ -129,6 +165,9 @@ class Daemon:
         state = self.devices[name]
 
         def handle(rec: object) -> None:
+            if isinstance(rec, keller.DeviceError):
+                self._on_device_error(state, rec)
+                return
             state.records += 1
             state.recent.append(self.clock())
             if isinstance(rec, ahrs.Euler):
@@ -146,19 +185,29 @@ class Daemon:
 
         return handle
 
+    def _on_device_error(self, state: DeviceState, rec: keller.DeviceError) -> None:
+        """An exception answer is not a reading: counted apart, and shown in health."""
+        state.device_errors += 1
+        state.t_device_error = self.clock()
+        if rec.code == keller.E_NOT_INITIALISED and state.transport is not None:
+            # the sensor lost power and forgot F48: initialise it again and carry on
+            state.transport.write(state.decoder.request_init())
+
     def _on_range(self, r: modem.ModemRange) -> None:
         if self.ping_t is None:
             self.pings["errors"] += 1  # a range we did not ask for
             return
         m = self.cfg.devices.modem
         self.pings["ranges"] += 1
+        self.vitals.ping("range")
         t_ping, self.ping_t = self.ping_t, None
         self.feed(Range(r.t, t_ping, r.range_m, m.beacon, r.lat, r.lon, r.depth))
 
     def _on_modem_reply(self, r: modem.ModemReply) -> None:
         # "OK" follows a range, which already closed the ping; silence or an error close it
-        if r.status in ("no_reply", "error"):
+        if r.status in ("no_reply", "error") and self.ping_t is not None:
             self.pings[r.status if r.status == "no_reply" else "errors"] += 1
+            self.vitals.ping(r.status)
             self.ping_t = None
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
@@ -227,6 +276,7 @@ class Daemon:
                     self.pings["skipped_busy"] += 1
                     continue
                 self.pings["timeouts"] += 1  # the modem never closed the last ping
+                self.vitals.ping("timeout")
                 self.ping_t = None
             tr = self.devices["modem"].transport
             if tr is None or not tr.health.connected:
@@ -252,15 +302,28 @@ class Daemon:
             if late > dt_:
                 self.overruns += 1
                 k = math.floor(now / dt_)  # catch up: the navigator emits every missed tick
-            self._outputs(self.nav.advance(k * dt_))
+            try:
+                self._outputs(self.nav.advance(k * dt_))
+            except Exception as exc:
+                self._navigator_failed(exc)
             self.ticks += 1
             if (
                 self.notifier.watchdog_s
                 and now - self._last_watchdog >= self.notifier.watchdog_s / 2
+                and self._navigating(now)
             ):
-                self.notifier.watchdog()  # from the loop itself: a hung loop stops these
+                # from the loop itself, and only while estimates come out: systemd
+                # restarts a daemon whose loop hangs or whose navigation is dead
+                self.notifier.watchdog()
                 self._last_watchdog = now
             k += 1
+
+    def _navigating(self, now: float) -> bool:
+        """Estimates are coming out, or the filter is waiting for its first position."""
+        if not self.nav.filter.initialised:
+            return True
+        last = self.vitals.estimates[-1] if self.vitals.estimates else self.vitals.t_started
+        return now - last <= 2.0
 
     async def _log_flusher(self) -> None:
         last_sync = self.clock()
@@ -278,6 +341,7 @@ class Daemon:
             m = self.cfg.devices.modem
             if self.ping_t is not None and self.clock() - self.ping_t > m.reply_timeout_s:
                 self.pings["timeouts"] += 1
+                self.vitals.ping("timeout")
                 self.ping_t = None
             h = self.health()
             self.rlog.output({"type": "health", **h})
@@ -303,20 +367,40 @@ class Daemon:
                 "skipped_bytes": stats.skipped_bytes,
                 "reconnects": hl.reconnects if hl else 0,
                 "last_error": hl.last_error if hl else "",
+                "device_errors": st.device_errors,
+                "internal_errors": dict(hl.internal_errors) if hl else {},
             }
         lat = list(self.tick_lateness)
         est = self.latest or {}
-        degraded = [s for s in est.get("stale", [])]
-        degraded += [f"{n} disconnected" for n, d in devices.items() if not d["connected"]]
+        mode = est.get("mode", "waiting_for_gps")
+        self.vitals.mode(now, mode)
+        d = self.cfg.devices
+        source = {"heading": d.ahrs, "rpm": d.motor, "depth": d.pressure}
+        ages = {k: v for k, v in self.nav.input_ages(now).items() if source[k].enabled}
+        degraded = self.vitals.problems(now, self.nav.filter.initialised, ages)
+        degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv["connected"]]
+        for n, st in self.devices.items():
+            if st.t_device_error is not None and now - st.t_device_error <= RECENT_S:
+                degraded.append(f"{n}: device error answers ({st.device_errors})")
+            hl = st.transport.health if st.transport else None
+            if hl and hl.last_internal_error and now - hl.last_internal_error <= RECENT_S:
+                degraded.append(f"{n}: internal errors {hl.internal_errors}")
+        if self._t_internal_error is not None and now - self._t_internal_error <= RECENT_S:
+            degraded.append(f"internal errors {self.internal_errors}")
         if self.rlog.degraded and self.rlog.errors:
             degraded.append("log")
         return {
             "t_mono": now,
-            "mode": est.get("mode", "waiting_for_gps"),
+            "mode": mode,
             "ok": not degraded,
             "degraded": degraded,
+            "estimates_per_s": self.vitals.estimates_per_s(now),
+            "input_age_s": {k: None if v is None else round(v, 3) for k, v in ages.items()},
+            "last_range_accepted_age_s": None
+            if self.vitals.t_range_accepted is None
+            else round(now - self.vitals.t_range_accepted, 3),
             "devices": devices,
-            "pings": dict(self.pings),
+            "pings": {**self.pings, "last": list(self.vitals.pings)},
             "filter": dict(self.nav.counters),
             "ticks": self.ticks,
             "tick_overruns": self.overruns,

@@ -62,13 +62,19 @@ def least_squares_fix(
             pred, dn, de = geodesy.range_and_gradient(lat, lon, vehicle_hd, r.lat, r.lon, r.hd)
             H[i] = (dn, de)
             res[i] = r.range_m - pred
-        N = H.T @ (w[:, None] * H)
-        try:
-            cov = np.linalg.inv(N)
-        except np.linalg.LinAlgError:
+        if not (np.all(np.isfinite(H)) and np.all(np.isfinite(res))):
             return None
+        N = H.T @ (w[:, None] * H)
+        # Collinear beacons (or the vehicle on their baseline) make N singular; round-off
+        # can then leave it with a zero or negative eigenvalue and its inverse with a
+        # negative trace.  Either is a geometry with no fix, not an error.
+        eig = np.linalg.eigvalsh(N)
+        if not (np.all(np.isfinite(eig)) and eig[0] > 1e-12 * max(eig[-1], 1e-300)):
+            return None
+        cov = np.linalg.inv(N)
         # geometry too poor: the fix would be mostly noise (GDOP in units of range sigma)
-        if not np.all(np.isfinite(cov)) or math.sqrt(np.trace(cov) * float(w.mean())) > max_gdop:
+        gdop2 = float(np.trace(cov)) * float(w.mean())
+        if not (math.isfinite(gdop2) and 0.0 < gdop2 <= max_gdop * max_gdop):
             return None
         theta = cov @ H.T @ (w * res)
         lat, lon = geodesy.offset_position(lat, lon, float(theta[0]), float(theta[1]), vehicle_hd)

@@ -49,6 +49,10 @@ from navd.vlbl import NetRange, VirtualNet
 _GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
 _GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
 _FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
+# Depth older than this is not trusted to refuse a GPS fix: a fix can only come with
+# the antenna out of the water, so a stalled pressure sensor must not keep the
+# vehicle "submerged" after it has surfaced.
+_DEPTH_TRUST_S = 5.0
 
 
 def make_filter(cfg: Config) -> NavFilter:
@@ -103,6 +107,7 @@ class Navigator:
         self._rpm: float | None = None
         self._t_rpm = -math.inf
         self._depth = 0.0
+        self._t_depth = -math.inf
         self._alt_sum = 0.0
         self._alt_n = 0
         self._t_gps: float | None = None
@@ -258,7 +263,7 @@ class Navigator:
         self._rpm, self._t_rpm = rec.rpm, rec.t
 
     def _on_depth(self, rec: Depth) -> None:
-        self._depth = rec.m
+        self._depth, self._t_depth = rec.m, rec.t
 
     def _on_pressure(self, rec: Pressure) -> None:
         site = self.cfg.site
@@ -268,6 +273,7 @@ class Navigator:
             self._p_surface.append(rec.bar)
         p0 = statistics.median(self._p_surface) if self._p_surface else site.surface_pressure_bar
         self._depth = (rec.bar - p0) * 1e5 / (site.water_density_kgm3 * site.gravity_mps2)
+        self._t_depth = rec.t
 
     def _on_velocity(self, rec: Velocity) -> None:
         # DVL dead reckoning runs beside the range filter, with its predicted error
@@ -289,8 +295,10 @@ class Navigator:
             self.counters["gps_poor_hdop"] += 1
             return
         if not self._at_surface():
-            self.counters["gps_while_submerged"] += 1
-            return
+            if rec.t - self._t_depth <= _DEPTH_TRUST_S:
+                self.counters["gps_while_submerged"] += 1
+                return
+            self.counters["gps_with_stale_depth"] += 1
         if self._t_gps is None or rec.t - self._t_gps > _GPS_NEW_STREAK_S:
             self._t_gps_streak = rec.t
         self._t_gps = rec.t
@@ -387,14 +395,20 @@ class Navigator:
             self.filter.apply_fix(lsfix)
         if lsfix is not None and not self.filter.initialised and self._t_gps is None:
             # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
-            std0 = math.sqrt(max(np.linalg.eigvalsh(lsfix.cov_ne)))
+            std0 = math.sqrt(max(0.0, float(np.linalg.eigvalsh(lsfix.cov_ne)[-1])))
             self.filter.initialise(lsfix.lat, lsfix.lon, max(std0, 1.0), t)
             self.dr.reset(lsfix.lat, lsfix.lon)
             self.counters["initialised_from_acoustic_fix"] += 1
 
     # -- outputs -----------------------------------------------------------------------
+    def input_ages(self, t: float) -> dict[str, float | None]:
+        """Seconds since the last heading, RPM and depth (None: never seen)."""
+        ages = {"heading": self._t_heading, "rpm": self._t_rpm, "depth": self._t_depth}
+        return {k: (t - v if math.isfinite(v) else None) for k, v in ages.items()}
+
     def mode(self, t: float) -> str:
-        if not self._at_surface():
+        depth_stale = t - self._t_depth > _DEPTH_TRUST_S
+        if not self._at_surface() and not (depth_stale and self._gps_fresh(t)):
             return "submerged"
         if self._gps_fresh(t) and t - self._t_gps_streak >= self.nav.gps.warmup_s:
             return "surface"

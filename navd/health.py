@@ -1,0 +1,79 @@
+"""Is navd navigating?  Judged from what it delivers, not from whether its ports are open.
+
+A daemon can have every port open and every decoder counting good frames while
+its navigation is dead: a pressure sensor that stopped answering leaves depth
+frozen, a modem that never replies leaves the filter on dead reckoning, a
+poisoned estimate is dropped tick after tick.  :class:`Vitals` keeps the few
+facts that show these states (when estimates went out, when inputs last
+arrived, how pings ended) and :meth:`Vitals.problems` names each state that is
+not well.  It is pure: the caller passes the time.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+#: how many consecutive failed pings mean the modem or the deck box is not answering
+FAILED_PINGS = 3
+#: the window over which the estimate rate is measured
+RATE_WINDOW_S = 5.0
+#: a device error answer or an internal error is shown this long after it happened
+RECENT_S = 30.0
+
+
+@dataclass(slots=True)
+class Vitals:
+    rate_hz: float
+    ping_interval_s: float
+    stale_s: float
+    estimates: deque[float] = field(default_factory=lambda: deque(maxlen=1000))
+    pings: deque[str] = field(default_factory=lambda: deque(maxlen=FAILED_PINGS))
+    t_range_accepted: float | None = None
+    t_submerged: float | None = None  # when the vehicle last went under
+    t_started: float = 0.0
+
+    def estimate(self, t: float) -> None:
+        self.estimates.append(t)
+
+    def ping(self, outcome: str) -> None:
+        """``range``, ``no_reply``, ``timeout`` or ``error``."""
+        self.pings.append(outcome)
+
+    def range_accepted(self, t: float) -> None:
+        self.t_range_accepted = t
+
+    def estimates_per_s(self, now: float) -> float:
+        n = sum(1 for t in self.estimates if now - t <= RATE_WINDOW_S)
+        return n / RATE_WINDOW_S
+
+    def mode(self, now: float, mode: str) -> None:
+        if mode == "submerged":
+            if self.t_submerged is None:
+                self.t_submerged = now
+        else:
+            self.t_submerged = None
+
+    def problems(
+        self, now: float, initialised: bool, input_ages: dict[str, float | None]
+    ) -> list[str]:
+        out = []
+        rate = self.estimates_per_s(now)
+        if not initialised:
+            out.append("no estimates: waiting for a position (GPS or an acoustic fix)")
+        elif now - self.t_started > RATE_WINDOW_S and rate < 0.9 * self.rate_hz:
+            out.append(f"estimates at {rate:.1f}/s of {self.rate_hz:g}")
+        for name, age in input_ages.items():
+            if age is None:
+                if now - self.t_started > max(5.0, 3 * self.stale_s):
+                    out.append(f"{name}: never received")
+            elif age > self.stale_s:
+                out.append(f"{name}: stale for {age:.1f} s")
+        if len(self.pings) == FAILED_PINGS and "range" not in self.pings:
+            out.append(f"modem: the last {FAILED_PINGS} pings had no range")
+        if self.t_submerged is not None:
+            since = self.t_range_accepted if self.t_range_accepted else self.t_submerged
+            quiet = now - max(since, self.t_submerged)
+            if quiet > max(60.0, 6 * self.ping_interval_s):
+                out.append(f"no accepted range for {quiet:.0f} s submerged")
+        return out

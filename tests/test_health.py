@@ -1,0 +1,151 @@
+"""Health says what the daemon delivers: every state below was once reported ``ok: true``.
+
+The daemon is driven here without ports or an event loop, on a clock the test
+moves, through the same handlers its serial tasks call.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from drivers import keller, modem
+from drivers.keller import DeviceError, KellerDecoder
+from drivers.transport import PortHealth
+from navd.app import Daemon, DeviceState
+from navd.config import config_from_dict
+from navd.filter import Navigator
+from navd.records import Attitude, Depth, Gps, Pressure, Rpm
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Port:
+    """A serial port that is open (the pty tests cover the real one)."""
+
+    def __init__(self) -> None:
+        self.health = PortHealth(connected=True)
+        self.written: list[bytes] = []
+
+    def write(self, data: bytes) -> bool:
+        self.written.append(data)
+        return True
+
+
+def _daemon(tmp_path: Path) -> tuple[Daemon, Clock]:
+    clock = Clock()
+    cfg = config_from_dict({"log": {"dir": str(tmp_path / "log")}})
+    d = Daemon(cfg, clock=clock)
+    for name in ("ahrs", "pressure", "motor", "modem", "gps"):
+        dec = KellerDecoder(1) if name == "pressure" else modem.ModemDecoder()
+        d.devices[name] = DeviceState(name, transport=Port(), decoder=dec)  # type: ignore[arg-type]
+    return d, clock
+
+
+def _navigate(d: Daemon, clock: Clock, seconds: float, depth_bar: float | None = 1.01325) -> None:
+    """Every input arriving as it should, estimates going out at 10 Hz."""
+    end = clock.t + seconds
+    while clock.t < end:
+        clock.t = round(clock.t + 0.1, 6)
+        d.feed(Attitude(clock.t, 0.0, 0.0, 0.0))
+        d.feed(Rpm(clock.t, 0.0))
+        if depth_bar is not None:
+            d.feed(Pressure(clock.t, depth_bar))
+        if not d.nav.filter.initialised:
+            d.feed(Gps(clock.t, 37.05, -80.66, 0.0, 1))
+        d._outputs(d.nav.advance(clock.t))
+
+
+def test_a_navigating_daemon_is_ok(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 10.0)
+    h = d.health()
+    assert h["degraded"] == [], h["degraded"]
+    assert h["ok"] and h["estimates_per_s"] == pytest.approx(10.0, abs=0.5)
+
+
+def test_a_stalled_pressure_sensor_is_not_ok(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 10.0)
+    _navigate(d, clock, 12.0, depth_bar=None)  # depth frozen for 12 s
+    h = d.health()
+    assert not h["ok"] and any(p.startswith("depth: stale") for p in h["degraded"])
+    assert h["input_age_s"]["depth"] == pytest.approx(12.0, abs=0.2)
+
+
+def test_keller_exception_answers_are_not_readings(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 10.0)
+    handle = d._on_record("pressure")
+    records = d.devices["pressure"].records
+    handle(DeviceError(clock.t, keller.F_READ_FLOAT, 3))
+    h = d.health()
+    assert d.devices["pressure"].records == records
+    assert not h["ok"] and any("device error" in p for p in h["degraded"])
+    # code 32, not initialised (a power blip): initialise again, keep polling
+    handle(DeviceError(clock.t, keller.F_READ_FLOAT, keller.E_NOT_INITIALISED))
+    assert d.devices["pressure"].transport.written == [keller.encode_init(1)]  # type: ignore[union-attr]
+
+
+def test_a_modem_that_never_replies_is_not_ok(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+    for _ in range(3):
+        d.ping_t = clock.t
+        _navigate(d, clock, 5.0)
+        d._on_modem_reply(modem.ModemReply(clock.t, "no_reply"))
+    h = d.health()
+    assert not h["ok"] and any("pings had no range" in p for p in h["degraded"])
+    assert h["pings"]["last"] == ["no_reply"] * 3
+
+
+def test_no_estimates_is_not_ok_and_starves_the_watchdog(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+    assert d._navigating(clock.t)
+    clock.t += 18.0  # the loop runs, the ports are open, but no estimate went out
+    h = d.health()
+    assert not h["ok"] and any(p.startswith("estimates at 0.0/s") for p in h["degraded"])
+    assert not d._navigating(clock.t)
+
+
+def test_a_navigator_that_raises_is_caught_counted_and_restarted(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+
+    def boom(rec: object) -> list:
+        raise ZeroDivisionError("a bug")
+
+    real = d.nav.feed
+    d.nav.feed = boom  # type: ignore[method-assign]
+    d.feed(Rpm(clock.t, 0.0))
+    d.feed(Rpm(clock.t, 0.0))
+    d.nav.feed = real  # type: ignore[method-assign]
+    assert d.internal_errors == {"navigator: ZeroDivisionError": 2}
+    assert any("internal errors" in p for p in d.health()["degraded"])
+    _navigate(d, clock, 2.0)  # navigation resumes at the next fix
+    assert d.nav.filter.initialised
+
+
+def test_a_vehicle_that_surfaces_with_a_stalled_depth_sensor_takes_gps() -> None:
+    nav = Navigator(config_from_dict({}))
+    for k in range(20):
+        nav.feed(Gps(k * 0.1, 37.05, -80.66, 0.0, 1))
+    nav.feed(Depth(2.5, 4.0))  # dives, then the pressure sensor stalls
+    nav.feed(Gps(3.0, 37.05, -80.66, 0.0, 1))
+    assert nav.counters["gps_while_submerged"] == 1
+    out = []
+    for k in range(20):  # surfaced: fixes again, depth still says 4 m
+        out += nav.feed(Gps(10.0 + k * 0.1, 37.0501, -80.66, 0.0, 1))
+    out += nav.advance(12.0)
+    assert nav.counters["gps_with_stale_depth"] == 20
+    assert out[-1]["mode"] != "submerged"
+    # the fixes (11 m north, at the warm-up weight) pulled the estimate most of the way
+    assert out[-1]["lat"] > 37.05006
