@@ -33,6 +33,7 @@ from navd.sdnotify import Notifier
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
+MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
 
 class _Logged:
@@ -80,7 +81,10 @@ class Daemon:
         self.clock = clock
         self.notifier = notifier or Notifier()
         self.nav = Navigator(cfg)
-        self.rlog = RecordLog(cfg.log.dir, cfg.log.rotate_mb, cfg.log.raw_bytes)
+        lc = cfg.log
+        self.rlog = RecordLog(
+            lc.dir, lc.rotate_mb, lc.raw_bytes, lc.raw_budget_bytes_per_s, lc.keep_mb
+        )
         self.publisher_factory = publisher_factory
         self.pub: Any = None
         self.devices: dict[str, DeviceState] = {}
@@ -116,6 +120,7 @@ class Daemon:
         # the daemon, logged once, shown in health
         self.internal_errors: dict[str, int] = {}
         self._t_internal_error: float | None = None
+        self.zenoh_error = ""  # why the zenoh session is not open, while it is not
 
     # -- records in ------------------------------------------------------------------
     def feed(self, rec: Any) -> None:
@@ -211,14 +216,24 @@ class Daemon:
             self.ping_t = None
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
-    def on_command(self, name: str, body: dict[str, Any]) -> None:
-        """A validated command: fed like a measurement, so the log keeps it and replay redoes it."""
+    def on_command(self, name: str, body: dict[str, Any]) -> str | None:
+        """A validated command, or why it is refused (None: done).
+
+        It is fed like a measurement, so the log keeps it and replay redoes it.
+        """
         t = self.clock()
         if name == "reset":
+            if self.nav.mode(t) == "submerged" and not body.get("force"):
+                # submerged, the filter cannot start again until the vehicle surfaces
+                return "submerged: a reset stops navigation until the next GPS fix; send force"
             self.feed(Reset(t))
         elif name == "beacon":
+            known = self.nav.beacons.beacons
+            if body["name"] not in known and len(known) >= MAX_BEACONS:
+                return f"at most {MAX_BEACONS} beacons"
             self.feed(SetBeacon(t, body["name"], body["lat"], body["lon"], body.get("depth", 0.0)))
         self.events.append(f"{name} {body}")
+        return None
 
     # -- tasks -------------------------------------------------------------------------
     def _start_devices(self) -> None:
@@ -325,6 +340,25 @@ class Daemon:
         last = self.vitals.estimates[-1] if self.vitals.estimates else self.vitals.t_started
         return now - last <= 2.0
 
+    async def _zenoh(self) -> None:
+        """Open the zenoh session, and keep trying while it cannot be (port in use, bad
+        endpoint): navigation and the log do not wait for it."""
+        if self.publisher_factory is None:
+            return
+        loop = asyncio.get_running_loop()
+        delay = 1.0
+        while self.pub is None:
+            try:
+                self.pub = self.publisher_factory(loop, self.on_command)
+                self.zenoh_error = ""
+                log.info("zenoh session open")
+            except Exception as exc:  # zenoh raises its own ZError, and OSError
+                if not self.zenoh_error:
+                    log.error("zenoh: cannot open the session (%s); retrying", exc)
+                self.zenoh_error = f"{exc.__class__.__name__}: {exc}"[:200]
+                await asyncio.sleep(delay)
+                delay = min(30.0, delay * 2)
+
     async def _log_flusher(self) -> None:
         last_sync = self.clock()
         while True:
@@ -389,6 +423,8 @@ class Daemon:
             degraded.append(f"internal errors {self.internal_errors}")
         if self.rlog.degraded and self.rlog.errors:
             degraded.append("log")
+        if self.publisher_factory is not None and self.pub is None:
+            degraded.append(f"zenoh: not open ({self.zenoh_error or 'opening'}), retrying")
         return {
             "t_mono": now,
             "mode": mode,
@@ -420,11 +456,14 @@ class Daemon:
                 "lines": self.rlog.lines,
                 "errors": self.rlog.errors,
                 "dropped": self.rlog.dropped,
+                "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
+                "files_removed": self.rlog.removed_files,
                 "last_error": self.rlog.last_error,
             },
-            "zenoh": None
+            "zenoh": {"open": False, "error": self.zenoh_error}
             if self.pub is None
             else {
+                "open": True,
                 "errors": self.pub.errors,
                 "commands": dict(self.pub.commands),
             },
@@ -433,11 +472,10 @@ class Daemon:
 
     async def run(self, stop: asyncio.Event) -> None:
         loop = asyncio.get_running_loop()
-        if self.publisher_factory is not None:
-            self.pub = self.publisher_factory(loop, self.on_command)
         self._start_devices()
         d = self.cfg.devices
         tasks = [
+            loop.create_task(self._zenoh()),
             loop.create_task(self._ticker()),
             loop.create_task(self._health()),
             loop.create_task(self._log_flusher()),

@@ -9,6 +9,7 @@ them, so an unknown key, a wrong type, a non-finite or out-of-range value is a
 from __future__ import annotations
 
 import math
+import reprlib
 import types
 import typing
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
@@ -36,7 +37,8 @@ def _num(default: float, **kw: float) -> Any:
 
 @dataclass(frozen=True, slots=True)
 class SpeedConfig:
-    rpm_per_mps: float = _num(910.0, gt=0.0)  # linear RPM-to-surge map from a speed trial
+    # linear RPM-to-surge map from a speed trial; below 1 any RPM would be a ship's speed
+    rpm_per_mps: float = _num(910.0, lo=1.0, hi=1e6)
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,8 +166,10 @@ class PolledDevice(SerialPortConfig):
 class ModemDevice(SerialPortConfig):
     remote_address: int = _num(2, lo=0, hi=255)  # the UDB-9400's modem address
     beacon: str = "udb"  # the beacon name its ranges carry
-    ping_interval_s: float = _num(10.0, gt=0.0)
-    reply_timeout_s: float = _num(8.0, gt=0.0)
+    # a ping takes a round trip and the modem's own turnaround: faster is a typo, and
+    # would flood the modem (1e-6 once gave 122,000 ATRX writes in 8 s)
+    ping_interval_s: float = _num(10.0, lo=1.0, hi=3600.0)
+    reply_timeout_s: float = _num(8.0, lo=0.5, hi=600.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,9 +193,14 @@ class ZenohConfig:
 @dataclass(frozen=True, slots=True)
 class LogConfig:
     dir: str = "navd-log"
-    rotate_mb: float = _num(64.0, gt=0.0)
-    fsync_s: float = _num(1.0, gt=0.0)
+    rotate_mb: float = _num(64.0, lo=1.0, hi=100_000.0)  # smaller makes files by the second
+    fsync_s: float = _num(1.0, lo=0.1, hi=60.0)
     raw_bytes: bool = True  # also log every byte off the serial ports
+    # what one device's raw bytes may take, per second: a babbling device must not fill
+    # the disk (at full speed about 13 MB/s); the excess is counted, not logged
+    raw_budget_bytes_per_s: float = _num(20_000.0, lo=100.0, hi=1e8)
+    # the log directory is kept under this: the oldest files go first (0 keeps all)
+    keep_mb: float = _num(20_000.0, lo=0.0, hi=1e7)
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,12 +233,30 @@ def _fail(path: str, msg: str) -> typing.NoReturn:
     raise ConfigError(f"{path}: {msg}")
 
 
+_SHOW = reprlib.Repr()
+_SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict = 1, 4, 4
+_SHOW.maxstring = _SHOW.maxother = _SHOW.maxlong = 40
+
+
+def _show(value: Any) -> str:
+    """A value as an error message shows it: bounded, whatever its size or nesting.
+
+    A YAML alias bomb is small as parsed (shared references) and astronomically large
+    when written out; the message must never write it out.
+    """
+    return _SHOW.repr(value)
+
+
 def _check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        _fail(path, f"expected a number, got {type(value).__name__} {value!r}")
-    if tp is int and not (isinstance(value, int) or float(value).is_integer()):
+        _fail(path, f"expected a number, got {type(value).__name__} {_show(value)}")
+    try:
+        as_float = float(value)
+    except OverflowError:
+        _fail(path, f"must be finite, got an integer of {len(str(abs(value)))} digits")
+    if tp is int and not (isinstance(value, int) or as_float.is_integer()):
         _fail(path, f"expected a whole number, got {value!r}")
-    if not math.isfinite(value):
+    if not math.isfinite(as_float):
         _fail(path, f"must be finite, got {value!r}")
     lo, hi, gt = meta.get("lo"), meta.get("hi"), meta.get("gt")
     if lo is not None and value < lo:
@@ -251,7 +278,7 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
     if origin is Literal:
         choices = typing.get_args(tp)
         if value not in choices:
-            _fail(path, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
+            _fail(path, f"must be one of {', '.join(map(str, choices))}, got {_show(value)}")
         return value
     if origin is list:
         if not isinstance(value, list):
@@ -265,7 +292,7 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
         out = {}
         for k, v in value.items():
             if not isinstance(k, str) or not k or not k.isprintable():
-                _fail(path, f"names must be non-empty printable strings, got {k!r}")
+                _fail(path, f"names must be non-empty printable strings, got {_show(k)}")
             out[k] = _convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
         return out
     if is_dataclass(tp):
@@ -274,11 +301,11 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
         return _check_number(value, tp, meta, path)
     if tp is str:
         if not isinstance(value, str):
-            _fail(path, f"expected a string, got {type(value).__name__} {value!r}")
+            _fail(path, f"expected a string, got {type(value).__name__} {_show(value)}")
         return value
     if tp is bool:
         if not isinstance(value, bool):
-            _fail(path, f"expected true or false, got {value!r}")
+            _fail(path, f"expected true or false, got {_show(value)}")
         return value
     raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
 
@@ -293,7 +320,7 @@ def _build(cls: type, data: Any, path: str) -> Any:
     for key in data:
         if key not in known:
             # a key is shown as written, or quoted when it holds what a line cannot
-            name = key if isinstance(key, str) and key.isprintable() else repr(key)
+            name = key if isinstance(key, str) and key.isprintable() else _show(key)
             _fail(f"{path}.{name}" if path else name, "unknown key")
     kwargs = {}
     for name, f in known.items():
@@ -312,7 +339,39 @@ def build(cls: type, data: Any, path: str = "") -> Any:
 
 def config_from_dict(data: Any) -> Config:
     """Validate a parsed YAML document into a :class:`Config`."""
-    return _build(Config, data, "")
+    cfg: Config = _build(Config, data, "")
+    for i, ep in enumerate(cfg.zenoh.listen):
+        if "0.0.0.0" in ep or "[::]" in ep:
+            # commands reach the vehicle through this: it listens on a named network only
+            _fail(f"zenoh.listen[{i}]", f"{ep} listens on every interface; give an address")
+    return cfg
+
+
+class _DuplicateKey(Exception):
+    def __init__(self, key: Any, line: int) -> None:
+        super().__init__(f"line {line}: duplicate key {_show(key)}")
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice (YAML keeps the last, silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            try:
+                dup = key in seen
+                seen.add(key)
+            except TypeError:  # an unhashable key: the schema refuses it later
+                continue
+            if dup:
+                raise _DuplicateKey(key, key_node.start_mark.line + 1)
+        return super().construct_mapping(node, deep=deep)
+
+
+def parse_yaml(text: str) -> Any:
+    """Parse YAML as the config loader does; raises ``yaml.YAMLError`` or names a duplicate."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -325,7 +384,9 @@ def load_config(path: str | Path | None) -> Config:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read config ({exc.__class__.__name__}: {exc})") from None
     try:
-        data = yaml.safe_load(text)
+        data = parse_yaml(text)
+    except _DuplicateKey as exc:
+        raise ConfigError(f"{p}: {exc}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""

@@ -27,10 +27,23 @@ _RETRY_AFTER_S = 10.0
 
 
 class RecordLog:
-    def __init__(self, directory: str | Path, rotate_mb: float = 64.0, raw: bool = True) -> None:
+    def __init__(
+        self,
+        directory: str | Path,
+        rotate_mb: float = 64.0,
+        raw: bool = True,
+        raw_budget_bytes_per_s: float = 20_000.0,
+        keep_mb: float = 0.0,
+    ) -> None:
         self.dir = Path(directory)
         self.rotate_bytes = int(rotate_mb * 1024 * 1024)
+        self.keep_bytes = int(keep_mb * 1024 * 1024)
         self.raw = raw
+        self.raw_budget = raw_budget_bytes_per_s
+        # per device: (bytes still allowed, time of the last refill); excess is counted
+        self._raw_allow: dict[str, tuple[float, float]] = {}
+        self.raw_dropped: dict[str, int] = {}
+        self.removed_files = 0
         self.fh: TextIO | None = None
         self.path: Path | None = None
         self.size = 0
@@ -48,6 +61,7 @@ class RecordLog:
 
     def _open(self) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
+        self._retain()
         now = dt.datetime.now(dt.UTC)
         self.files += 1
         self.path = self.dir / f"navd-{now:%Y%m%dT%H%M%S}-{os.getpid()}-{self.files:03d}.jsonl"
@@ -100,8 +114,37 @@ class RecordLog:
         self._write(record_to_json(rec))
 
     def raw_bytes(self, t: float, device: str, data: bytes) -> None:
-        if self.raw:
-            self._write({"type": "raw", "t": t, "device": device, "hex": data.hex()})
+        if not self.raw:
+            return
+        # a token bucket of one second's budget: bursts pass, a babbling device does not
+        allow, t_last = self._raw_allow.get(device, (self.raw_budget, t))
+        allow = min(self.raw_budget, allow + max(0.0, t - t_last) * self.raw_budget)
+        if len(data) > allow:
+            self._raw_allow[device] = (allow, t)
+            self.raw_dropped[device] = self.raw_dropped.get(device, 0) + len(data)
+            return
+        self._raw_allow[device] = (allow - len(data), t)
+        self._write({"type": "raw", "t": t, "device": device, "hex": data.hex()})
+
+    def _retain(self) -> None:
+        """Remove the oldest log files while the directory holds more than ``keep_mb``."""
+        if self.keep_bytes <= 0:
+            return
+        try:
+            files = sorted(self.dir.glob("navd-*.jsonl"), key=lambda f: f.stat().st_mtime)
+            total = sum(f.stat().st_size for f in files)
+        except OSError:
+            return  # a file vanished under us: try again at the next rotation
+        for f in files:
+            if total <= self.keep_bytes:
+                break
+            try:
+                size = f.stat().st_size
+                f.unlink()
+            except OSError:
+                continue
+            total -= size
+            self.removed_files += 1
 
     def output(self, out: dict[str, Any]) -> None:
         # filter outputs are logged under their own names so the log stays a measurement log

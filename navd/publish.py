@@ -16,9 +16,13 @@ handed to the event loop with ``call_soon_threadsafe``.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+import contextlib
 import json
 import math
+import re
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -27,30 +31,47 @@ import zenoh
 from navd.config import ZenohConfig
 
 SCHEMA_VERSION = 1
+_COMMAND_TIMEOUT_S = 2.0
 _JSON = zenoh.Encoding.APPLICATION_JSON
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
     cfg = zenoh.Config.from_file(z.config_file) if z.config_file else zenoh.Config()
     cfg.insert_json5("mode", json.dumps(z.mode))
-    if z.listen:
-        cfg.insert_json5("listen/endpoints", json.dumps(z.listen))
+    # always set: left unset, a zenoh peer listens on every interface
+    cfg.insert_json5("listen/endpoints", json.dumps(z.listen))
     if z.connect:
         cfg.insert_json5("connect/endpoints", json.dumps(z.connect))
     cfg.insert_json5("scouting/multicast/enabled", json.dumps(z.multicast_scouting))
     return cfg
 
 
+#: a command is a small JSON object; anything longer is refused before it is parsed
+MAX_COMMAND_BYTES = 4096
+#: beacon names: short, printable, safe in a log line and a zenoh key
+BEACON_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")
+#: commands accepted per second on average, and in a burst
+COMMAND_RATE_HZ = 2.0
+COMMAND_BURST = 5
+
+
 def _finite(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # an integer of hundreds of digits
+        return False
 
 
 def validate_reset(body: dict[str, Any]) -> str | None:
-    extra = set(body) - {"reason"}
+    extra = set(body) - {"reason", "force"}
     if extra:
         return f"unknown field {sorted(extra)[0]!r}"
-    if "reason" in body and not isinstance(body["reason"], str):
-        return "field 'reason' must be a string"
+    if "reason" in body and not (isinstance(body["reason"], str) and len(body["reason"]) <= 200):
+        return "field 'reason' must be a string of at most 200 characters"
+    if "force" in body and not isinstance(body["force"], bool):
+        return "field 'force' must be true or false"
     return None
 
 
@@ -58,8 +79,9 @@ def validate_beacon(body: dict[str, Any]) -> str | None:
     extra = set(body) - {"name", "lat", "lon", "depth"}
     if extra:
         return f"unknown field {sorted(extra)[0]!r}"
-    if not isinstance(body.get("name"), str) or not body["name"]:
-        return "field 'name' must be a non-empty string"
+    name = body.get("name")
+    if not isinstance(name, str) or not BEACON_NAME.fullmatch(name):
+        return "field 'name' must be 1 to 32 letters, digits, '_', '.' or '-'"
     for key, lo, hi in (("lat", -90.0, 90.0), ("lon", -180.0, 180.0), ("depth", 0.0, 11000.0)):
         if key == "depth" and key not in body:
             continue
@@ -71,13 +93,47 @@ def validate_beacon(body: dict[str, Any]) -> str | None:
     return None
 
 
+class TokenBucket:
+    """At most ``rate`` events a second on average, ``burst`` at once."""
+
+    def __init__(self, rate: float, burst: int, clock: Callable[[], float] = time.monotonic):
+        self.rate, self.burst, self.clock = rate, float(burst), clock
+        self.tokens = float(burst)
+        self.t = clock()
+
+    def take(self) -> bool:
+        now = self.clock()
+        self.tokens = min(self.burst, self.tokens + (now - self.t) * self.rate)
+        self.t = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
+
+
+def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], str | None]) -> dict | str:
+    """The command's body, or why it is refused; never raises, whatever the bytes."""
+    if len(raw) > MAX_COMMAND_BYTES:
+        return f"payload longer than {MAX_COMMAND_BYTES} bytes"
+    try:
+        body = json.loads(raw or b"{}")
+    except (ValueError, RecursionError):  # bad JSON, bad UTF-8, nesting too deep
+        return "payload must be a JSON object"
+    if not isinstance(body, dict):
+        return "payload must be a JSON object"
+    try:
+        return validate(body) or body
+    except Exception:  # pragma: no cover - validators are total; this is the last guard
+        return "malformed command"
+
+
 class Publisher:
     def __init__(
         self,
         zcfg: ZenohConfig,
         vehicle: str,
         loop: asyncio.AbstractEventLoop,
-        on_command: Callable[[str, dict[str, Any]], None],
+        on_command: Callable[[str, dict[str, Any]], str | None],
     ) -> None:
         self.prefix = f"auv/{vehicle}/nav"
         self.loop = loop
@@ -102,7 +158,8 @@ class Publisher:
         self._token = s.liveliness().declare_token(f"{self.prefix}/alive")
         self.seq = {"estimate": 0, "range": 0, "health": 0}
         self.errors = 0
-        self.commands = {"accepted": 0, "rejected": 0}
+        self.commands = {"accepted": 0, "rejected": 0, "rate_limited": 0}
+        self._bucket = TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST)
 
     def put(self, kind: str, body: dict[str, Any]) -> bytes:
         self.seq[kind] += 1
@@ -127,23 +184,46 @@ class Publisher:
 
     def _command(self, name: str, validate: Callable[[dict[str, Any]], str | None]):
         def handle(query: zenoh.Query) -> None:
-            raw = query.payload.to_bytes() if query.payload is not None else b"{}"
             try:
-                body = json.loads(raw or b"{}")
-            except (json.JSONDecodeError, UnicodeDecodeError):
-                body = None
-            err = "payload must be a JSON object" if not isinstance(body, dict) else None
-            err = err or validate(body)
-            if err:
+                reply = self._decide(name, validate, query)
+            except Exception as exc:  # nothing may be left unanswered in zenoh's thread
+                reply = {"ok": False, "error": f"malformed command ({exc.__class__.__name__})"}
+            if not reply["ok"]:
                 self.commands["rejected"] += 1
-                reply = {"ok": False, "error": err}
-            else:
-                self.commands["accepted"] += 1
-                self.loop.call_soon_threadsafe(self.on_command, name, body)
-                reply = {"ok": True}
-            query.reply(str(query.key_expr), json.dumps(reply).encode(), encoding=_JSON)
+            with contextlib.suppress(Exception):
+                query.reply(str(query.key_expr), json.dumps(reply).encode(), encoding=_JSON)
 
         return handle
+
+    def _decide(
+        self, name: str, validate: Callable[[dict[str, Any]], str | None], query: zenoh.Query
+    ) -> dict[str, Any]:
+        if not self._bucket.take():
+            self.commands["rate_limited"] += 1
+            return {"ok": False, "error": "rate limited: try again later"}
+        raw = query.payload.to_bytes() if query.payload is not None else b"{}"
+        body = parse_command(raw, validate)
+        if isinstance(body, str):
+            return {"ok": False, "error": body}
+        # the daemon's state decides the rest (a reset while submerged, the beacon
+        # table full): ask the event loop and wait for its answer
+        fut: concurrent.futures.Future[str | None] = concurrent.futures.Future()
+
+        def run() -> None:
+            try:
+                fut.set_result(self.on_command(name, body))
+            except Exception as exc:
+                fut.set_exception(exc)
+
+        self.loop.call_soon_threadsafe(run)
+        try:
+            err = fut.result(timeout=_COMMAND_TIMEOUT_S)
+        except concurrent.futures.TimeoutError:
+            return {"ok": False, "error": "the daemon did not answer in time"}
+        if err:
+            return {"ok": False, "error": err}
+        self.commands["accepted"] += 1
+        return {"ok": True}
 
     def close(self) -> None:
         try:
