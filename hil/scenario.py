@@ -104,7 +104,13 @@ class Acoustics:
     drop_burst_pings: float = _f(2.0, lo=1.0)  # mean length of a burst of drops
     multipath_prob: float = _f(0.06, lo=0.0, hi=1.0)
     multipath_mean_m: float = _f(40.0, lo=0.0)
+    # with a maximum, multipath lengths are uniform in [min, max] instead of exponential
+    multipath_min_m: float = _f(0.0, lo=0.0)
+    multipath_max_m: float = _f(0.0, lo=0.0)
     corrupt_position_prob: float = _f(0.03, lo=0.0, hi=1.0)
+    # gross corruptions of the reply's position: latitude off by 0.1 to 5 degrees, or
+    # longitude read as 0 (what an independent simulator of the deck box produced)
+    corrupt_gross_prob: float = _f(0.0, lo=0.0, hi=1.0)
     temperature_c: float = _f(10.0, lo=-2.0, hi=40.0)
     salinity_ppt: float = _f(0.2, lo=0.0, hi=45.0)
     modem_mps: float = _f(1500.0, gt=1300.0, hi=1700.0)
@@ -147,13 +153,19 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         raise ConfigError(f"{p}: cannot read scenario ({exc.strerror or exc})") from None
     except yaml.YAMLError:
         raise ConfigError(f"{p}: invalid YAML") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"{p}: expected a mapping")
-    cfg = data.pop("config", None) or {}
     try:
-        sc = build(Scenario, data)
+        return scenario_from_dict(data)
     except ConfigError as exc:
         raise ConfigError(f"{p}: {exc}") from None
+
+
+def scenario_from_dict(data: Any) -> Scenario:
+    """Validate a scenario mapping (as a YAML file holds it); ``config`` is the crew's."""
+    if not isinstance(data, dict):
+        raise ConfigError("expected a mapping")
+    data = dict(data)
+    cfg = data.pop("config", None) or {}
+    sc = build(Scenario, data)
     if not isinstance(cfg, dict):
-        raise ConfigError(f"{p}: config: expected a mapping")
+        raise ConfigError("config: expected a mapping")
     return Scenario(**{**{f: getattr(sc, f) for f in sc.__dataclass_fields__}, "config": cfg})

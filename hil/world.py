@@ -345,9 +345,16 @@ class AcousticChannel:
             return None
         extra = rng.normal(0.0, a.range_noise_m)
         if rng.random() < a.multipath_prob:
-            extra += rng.exponential(a.multipath_mean_m)
+            extra += self._multipath()
         twtt = tr - t_ping + 2.0 * extra / self.c_water
         return TravelTime(round(tr, 6), round(t_ping, 6), round(max(0.0, twtt), 9), tp.name)
+
+    def _multipath(self) -> float:
+        """How much longer a multipath reply reads than the direct path."""
+        a = self.a
+        if a.multipath_max_m > 0.0:
+            return float(self.rng.uniform(a.multipath_min_m, a.multipath_max_m))
+        return float(self.rng.exponential(a.multipath_mean_m))
 
     def ping(self, t_ping: float) -> Range | None:
         a, rng = self.a, self.rng
@@ -359,7 +366,7 @@ class AcousticChannel:
         m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
         m += rng.normal(0.0, a.range_noise_m)
         if rng.random() < a.multipath_prob:
-            m += rng.exponential(a.multipath_mean_m)
+            m += self._multipath()
         i = min(len(self.boat_gps) - 1, int(math.floor(tb)) * round(1.0 / self.dt))
         blat, blon = self.boat_gps[i]
         bdepth: float | None = self.sc.boat.transducer_depth_m
@@ -372,6 +379,13 @@ class AcousticChannel:
             else:  # the position field missing from the reply
                 blat = blon = None  # type: ignore[assignment]
                 bdepth = None
+        if a.corrupt_gross_prob and blat is not None and rng.random() < a.corrupt_gross_prob:
+            if rng.random() < 0.5:
+                blat = max(
+                    -89.0, min(89.0, blat + float(rng.choice([-1, 1]) * rng.uniform(0.1, 5.0)))
+                )
+            else:
+                blon = 0.0
         return Range(
             round(tr, 6),
             round(t_ping, 6),

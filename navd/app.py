@@ -412,6 +412,9 @@ class Daemon:
         source = {"heading": d.ahrs, "rpm": d.motor, "depth": d.pressure}
         ages = {k: v for k, v in self.nav.input_ages(now).items() if source[k].enabled}
         degraded = self.vitals.problems(now, self.nav.filter.initialised, ages)
+        integrity = est.get("integrity", "lost")
+        if integrity != "ok" and self.nav.filter.initialised:
+            degraded.append(f"integrity {integrity}: {est.get('integrity_reason', '')}")
         degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv["connected"]]
         for n, st in self.devices.items():
             if st.t_device_error is not None and now - st.t_device_error <= RECENT_S:
@@ -428,6 +431,7 @@ class Daemon:
         return {
             "t_mono": now,
             "mode": mode,
+            "integrity": integrity if self.nav.filter.initialised else "lost",
             "ok": not degraded,
             "degraded": degraded,
             "estimates_per_s": self.vitals.estimates_per_s(now),

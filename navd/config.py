@@ -104,6 +104,15 @@ class DvlConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class IntegrityConfig:
+    """When an estimate is ``degraded`` or ``lost`` (navd/filter/integrity.py)."""
+
+    window: int = _num(10, lo=3, hi=100)  # ranges in the consistency test
+    degraded_std_m: float = _num(25.0, gt=0.0)
+    lost_std_m: float = _num(100.0, gt=0.0)
+
+
+@dataclass(frozen=True, slots=True)
 class NavigationConfig:
     filter: Literal["default", "thesis", "vlbl"] = "default"
     rate_hz: float = _num(10.0, lo=1.0, hi=100.0)
@@ -111,12 +120,16 @@ class NavigationConfig:
     surface_depth_m: float = _num(0.3, lo=0.0, hi=20.0)
     stale_input_s: float = _num(1.0, gt=0.0)
     max_gap_s: float = _num(600.0, gt=0.0)  # a longer silence in the input restarts the filter
+    # the fastest current this site can have (strong tidal races reach about 3 m/s): a
+    # learned current is held below it, and a re-acquisition implying more is refused
+    max_current_mps: float = _num(2.0, gt=0.0, hi=10.0)
     speed: SpeedConfig = field(default_factory=SpeedConfig)
     sound_speed: SoundSpeedConfig = field(default_factory=SoundSpeedConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     gate: GateConfig = field(default_factory=GateConfig)
     gps: GpsConfig = field(default_factory=GpsConfig)
     dvl: DvlConfig = field(default_factory=DvlConfig)
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
 
 
 @dataclass(frozen=True, slots=True)

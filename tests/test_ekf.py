@@ -94,14 +94,17 @@ def test_never_locked_out_after_drifting() -> None:
     true_lat, true_lon = geodesy.offset_position(LAT, LON, 80.0, 0.0)
     decisions = []
     beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
-    for k in range(12):
+    for k in range(18):
         blat, blon = _beacon(*beacons[k % 3])
         r = geodesy.ecef_distance(true_lat, true_lon, -1.0, blat, blon, -1.0)
         f.t += 10.0
         decisions.append(f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0)))
     assert not decisions[0].accepted
-    first_ok = next(i for i, d in enumerate(decisions) if d.accepted)
-    assert first_ok <= 4
+    # Six ranges must agree before the estimate moves, and an 80 m jump must be one a
+    # current could have made since the last fix: this one, put there at once, takes
+    # a few more pings to become plausible.  It is never locked out.
+    reacquired = [i for i, d in enumerate(decisions) if d.reason == "gate_reacquire"]
+    assert len(reacquired) == 1 and reacquired[0] <= 9
     assert sum(d.accepted for d in decisions) >= 6
     e, n, _ = geodesy.enu_offset(true_lat, true_lon, 0, f.x[0], f.x[1], 0)
     assert math.hypot(e, n) < 10.0
@@ -164,7 +167,7 @@ def test_re_acquisition_learns_a_current_its_prior_ruled_out() -> None:
 
 
 def test_a_multipath_burst_does_not_open_the_gate_to_the_next_outlier() -> None:
-    """Three long outliers among good ranges trigger re-acquisition, but a small one."""
+    """Three long outliers among good ranges agree on no correction: nothing moves."""
     f = _ekf(pos_std=2.0)
     beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
     extra = [0.0, 150.0, 0.0, 10.0, 0.0, 40.0, 30.0]  # metres of multipath on each range
@@ -174,7 +177,8 @@ def test_a_multipath_burst_does_not_open_the_gate_to_the_next_outlier() -> None:
         r = geodesy.ecef_distance(LAT, LON, -1.0, blat, blon, -1.0) + x
         f.t += 10.0
         decisions.append(f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0)))
-    assert [d.reason for d in decisions[:6]] == ["ok", "gate", "ok", "gate", "ok", "gate_reacquire"]
-    assert not decisions[6].accepted  # the widened gate still refuses a 30 m outlier
+    assert [d.reason for d in decisions[:6]] == ["ok", "gate", "ok", "gate", "ok", "gate"]
+    assert f.reacquisitions == 0 and f.reacquire_refused >= 1
+    assert not decisions[6].accepted  # the gate still refuses a 30 m outlier
     e, n, _ = geodesy.enu_offset(LAT, LON, 0, f.x[0], f.x[1], 0)
     assert math.hypot(e, n) < 3.0

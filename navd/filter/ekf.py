@@ -25,12 +25,14 @@ What it changes from the thesis, and why:
   since ``t_ping`` (recorded per step), with its dependence on the current.
 * Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of a
   one-sigma radius, tighter for ranges that read long (multipath only lengthens
-  a path), and re-acquisition: when ``reacquire_after`` of the last
-  ``2 * reacquire_after`` ranges were rejected, the position covariance is
-  inflated by the drift those residuals show (``_drift_size``) and the current's
-  by the drift rate that implies, so a filter that has drifted (too small a
-  current prior) is never locked out for good, and then learns the current it
-  had ruled out.
+  a path).  The gate follows the covariance (seed 003, 4.2.4), so a filter that
+  has dead reckoned for long accepts wider.
+* Re-acquisition from consistent evidence: when ``reacquire_after`` of the last
+  ``2 * reacquire_after`` ranges were rejected, a robust fit over the recent
+  ranges (``navd/filter/reacquire.py``) looks for the position and current
+  correction most of them agree on.  Only such a correction is applied, with the
+  fit's covariance; a burst of mutually inconsistent long replies finds none and
+  changes nothing.  The current it learns is bounded by ``max_current_mps``.
 * Joseph-form update, symmetrised covariance, positions moved along geodesics.
 """
 
@@ -44,37 +46,34 @@ import numpy as np
 
 from navd import geodesy
 from navd.config import NoiseConfig
+from navd.filter import reacquire
 from navd.filter.common import Estimate, History, RangeDecision, RangeMeas, joseph_update
+from navd.filter.integrity import chi2_quantile
 
 N_STATES = 8
 _EYE = np.eye(N_STATES)
 _OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
-_TRACK_SECONDS = 60.0  # how much dead-reckoned motion is kept for round-trip geometry
-# Re-acquisition: a drift is assumed to have built up over at least this long, and no
-# current is faster than this (strong tidal races reach about 3 m/s).
-_MIN_DRIFT_S = 60.0
-_MAX_CURRENT_MPS = 3.0
-
-
-def _drift_size(rejected: list[float]) -> float:
-    """How far the estimate has drifted, judged from the residuals the gate rejected.
-
-    A drift of d metres shows as residuals up to d, by how the line of sight falls.
-    A short residual cannot be multipath (it only lengthens a path), so the largest
-    short one is drift; a long one may be an outlier, so of those only the smallest
-    counts.  Taking the largest of all let one multipath burst open the gate wide
-    enough to accept the next outlier.
-    """
-    short = [-r for r in rejected if r < 0.0]
-    long_ = [r for r in rejected if r >= 0.0]
-    return max(short + ([min(long_)] if long_ else []))
+# Recent ranges the re-acquisition fit looks at, and the dead-reckoned track kept to
+# place them (also the round-trip geometry of each range).
+_WINDOW_S = 300.0
+_WINDOW_RANGES = 12
+_TRACK_SECONDS = _WINDOW_S
+_HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
+_MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
+_REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
 
 
 class RangeEKF:
     def __init__(
-        self, noise: NoiseConfig, gate_chi2: float, gate_chi2_long: float, reacquire_after: int
+        self,
+        noise: NoiseConfig,
+        gate_chi2: float,
+        gate_chi2_long: float,
+        reacquire_after: int,
+        max_current_mps: float = 2.0,
     ) -> None:
         self.noise = noise
+        self.max_current = max_current_mps
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -89,7 +88,13 @@ class RangeEKF:
         # recent gate decisions: (accepted, residual); see _reacquire
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
+        self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
         self.t_anchor = 0.0  # when the position was last pinned (GPS, re-acquisition)
+        self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
+        self.last_nis = math.nan  # normalised innovation squared of the last range
+        # NIS of the last accepted ranges, and the 99 % bound of their sum (chi-square)
+        self._nis: deque[float] = deque(maxlen=2 * reacquire_after)
+        self._nis_limit = chi2_quantile(0.99, 2 * reacquire_after)
         self.t = 0.0
         # cumulative dead-reckoned north/east displacement at each step time (round-trip model)
         self._track_t: deque[float] = deque()
@@ -130,8 +135,11 @@ class RangeEKF:
         P = IKH @ self.P @ IKH.T + K @ R @ K.T
         self.P = 0.5 * (P + P.T)
         self._apply(K @ np.array([n, e]), hd)
+        self._limit_current()
         self.t_anchor = self.t
         self._recent.clear()
+        self._nis.clear()
+        self._window.clear()  # ranges before a fix say nothing the fix does not
         self.history.correct(self.x.copy(), self.P.copy())
 
     # -- prediction --------------------------------------------------------------------
@@ -276,36 +284,114 @@ class RangeEKF:
         S = float(H @ self.P @ H) + r_var
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
+        self.last_nis = residual * residual / S
+        while self._window and m.t - self._window[0][0].t > _WINDOW_S:
+            self._window.popleft()
         if residual * residual > chi2 * S:
+            self._window.append((m, True))
             self._recent.append((False, residual))
             rejected = [r for ok, r in self._recent if not ok]
             if len(rejected) >= self.reacquire_after:
-                self._reacquire(_drift_size(rejected), m.t)
-                return RangeDecision(False, residual, gate_m, "gate_reacquire")
+                if self._reacquire(m):
+                    return RangeDecision(False, residual, gate_m, "gate_reacquire")
+                self.reacquire_refused += 1
             return RangeDecision(False, residual, gate_m, "gate")
+        self._window.append((m, False))
+        self._nis.append(self.last_nis)
+        if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
+            # Accepted, but the recent ranges together say the covariance claims too
+            # much (a drifting estimate whose current prior was too small): test for a
+            # re-acquisition as after a run of rejections.
+            self._nis.clear()
+            if self._reacquire(m, min_rejected=0):
+                return RangeDecision(False, residual, gate_m, "gate_reacquire")
+            self.reacquire_refused += 1
+        if residual > _HUBER_K * math.sqrt(S):
+            # A long reply inside the gate may still be multipath: the gate is wide when
+            # the estimate is uncertain.  Weigh it as a Huber M-estimator does, so its
+            # pull is that of a k-sigma residual (and its information less): a long
+            # outlier cannot drag the estimate, a true range still moves it.
+            r_var = residual * math.sqrt(S) / _HUBER_K - (S - r_var)
         K, self.P, _ = joseph_update(self.P, H, r_var)
         self._apply(K * residual, m.vehicle_hd)
+        self._limit_current()
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return RangeDecision(True, residual, gate_m, "ok")
 
-    def _reacquire(self, drift_m: float, t: float) -> None:
-        # Consecutive rejections mean the estimate, not the ranges, has gone wrong (the
-        # seed's Chesapeake run: current prior too small, every range rejected).  Widen
-        # position by the drift, and the current by the drift rate that would have
-        # built it up since the position was last anchored (a GPS fix or the
-        # previous re-acquisition).  That rate is bounded by what water can do, not by
-        # the configured prior: the prior being too small is the failure recovered here.
-        since = max(_MIN_DRIFT_S, t - self.t_anchor)
-        cur_var = min((drift_m / since) ** 2, _MAX_CURRENT_MPS**2)
-        self.P[0, 0] += drift_m**2
-        self.P[1, 1] += drift_m**2
-        self.P[2, 2] += cur_var
-        self.P[3, 3] += cur_var
+    def _rays(self) -> list[reacquire.Ray]:
+        """The recent ranges seen from the present estimate, for the re-acquisition fit."""
+        lat, lon = float(self.x[0]), float(self.x[1])
+        rays = []
+        for m, rejected in self._window:
+            b_lat, b_lon = m.beacon_lat, m.beacon_lon
+            sigma2 = m.std_m**2 + m.beacon_position_std_m**2
+            if m.beacon == self.primary:
+                b_lat, b_lon = geodesy.offset_position(
+                    b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd
+                )
+            e, n, _ = geodesy.enu_offset(lat, lon, m.vehicle_hd, b_lat, b_lon, m.vehicle_hd)
+            dn_p, de_p = self._displacement_since(m.t_ping)
+            dn_b, de_b = self._displacement_since(m.t)
+            rays.append(
+                reacquire.Ray(
+                    (n, e, m.beacon_hd - m.vehicle_hd),
+                    (-dn_p, -de_p),
+                    (-dn_b, -de_b),
+                    max(0.0, self.t - m.t_ping),
+                    max(0.0, self.t - m.t),
+                    m.range_m,
+                    math.sqrt(sigma2),
+                    rejected,
+                )
+            )
+        return rays
+
+    def _reacquire(self, m: RangeMeas, min_rejected: int | None = None) -> bool:
+        """Move to the correction the recent ranges agree on; False if they do not agree.
+
+        Consecutive rejections mean either the estimate has gone wrong (the seed's
+        Chesapeake run: current prior too small, every range rejected) or the ranges
+        have (a multipath burst).  Only the first gives ranges that agree with one
+        another on a correction.
+        """
+        hyp = reacquire.find(
+            self._rays(),
+            (float(self.x[2]), float(self.x[3])),
+            self.P[:2, :2].copy(),
+            max(0.0, self.t - self.t_anchor),
+            self.max_current,
+            _MIN_SUPPORT,
+            self.reacquire_after if min_rejected is None else min_rejected,
+            _REACQUIRED_STD_M,
+            seed=self.reacquisitions * 7919 + self.reacquire_refused,
+        )
+        if hyp is None:
+            return False
+        dx = np.zeros(N_STATES)
+        dx[:4] = (hyp.d_north, hyp.d_east, hyp.dc_north, hyp.dc_east)
+        self._apply(dx, m.vehicle_hd)
+        # the fit is now what is known of position and current; their correlation with
+        # the other states (bias, scale, beacon offset) came from the estimate it replaced
+        P = self.P.copy()
+        P[:4, :] = 0.0
+        P[:, :4] = 0.0
+        P[:4, :4] = hyp.cov
+        self.P = 0.5 * (P + P.T)
+        self._limit_current()
         self._recent.clear()
+        self._nis.clear()
+        self._window.clear()
+        self.t_anchor = m.t
         self.reacquisitions += 1
-        self.t_anchor = t
-        self.history.widen(self.P.copy())
+        self.history.correct(self.x.copy(), self.P.copy())
+        return True
+
+    def _limit_current(self) -> None:
+        """Hold the current to what water can do at this site (``max_current_mps``)."""
+        speed = math.hypot(float(self.x[2]), float(self.x[3]))
+        if speed > self.max_current:
+            self.x[2:4] *= self.max_current / speed
 
     def _apply(self, dx: np.ndarray, hd: float) -> None:
         self.x = self.state_apply(self.x, dx, hd)

@@ -25,6 +25,7 @@ from navd.filter.beacons import BeaconResolver
 from navd.filter.common import NavFilter, RangeDecision, RangeMeas
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.ekf import RangeEKF
+from navd.filter.integrity import Integrity
 from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
 from navd.filter.vlblmode import VlblMode
@@ -67,7 +68,8 @@ def make_filter(cfg: Config) -> NavFilter:
             nz.thesis_position_walk_m_per_sqrt_s,
             nz.thesis_current_walk_mps_per_sqrt_s,
         )
-    return RangeEKF(nz, nav.gate.chi2, nav.gate.chi2_long, nav.gate.reacquire_after)
+    g = nav.gate
+    return RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
 
 
 class Navigator:
@@ -98,6 +100,8 @@ class Navigator:
         self.decl = math.radians(nav.magnetic_declination_deg)
         self.tick_dt = 1.0 / nav.rate_hz
         self.counters: Counter[str] = Counter()
+        ig = nav.integrity
+        self.integrity = Integrity(ig.window, ig.degraded_std_m, ig.lost_std_m)
         self.warnings: list[str] = list(self.sound.warnings())
 
         self._tick_k: int | None = None
@@ -158,6 +162,7 @@ class Navigator:
             self._tick_steps = []
         self.filter = make_filter(self.cfg)
         self.filter.history.enabled = enabled
+        self.integrity.clear()
         self.dr = DeadReckoner()
         self._tick_k = None
         self._t_filter = None
@@ -314,6 +319,7 @@ class Navigator:
             self._t_filter = rec.t
         else:
             self.filter.gps_update(lat, lon, std, hd)
+        self.integrity.clear()
         self.dr.reset(lat, lon)
         self.dvl.reset(lat, lon, rec.t)
         self.counters["gps_fused"] += 1
@@ -370,6 +376,7 @@ class Navigator:
             beacon_position_corr_s=fix.position_corr_s,
         )
         d: RangeDecision = self.filter.range_update(meas)
+        self.integrity.range(d.accepted, getattr(self.filter, "last_nis", math.nan))
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if not d.accepted:
             self.counters[f"range_{d.reason}"] += 1
@@ -432,6 +439,10 @@ class Navigator:
         self._fill(r, est)
         r["depth"] = self._depth
         r["mode"] = self.mode(t)
+        std_max = math.sqrt(max(0.0, _largest_eig(est.var_n, est.var_e, est.cov_ne)))
+        r["integrity"] = self.integrity.assess(std_max)
+        if self.integrity.reason:
+            r["integrity_reason"] = self.integrity.reason
         if isinstance(self.filter, RangeEKF):
             x = self.filter.x
             r["heading_bias_deg"] = math.degrees(float(x[4]))
@@ -474,6 +485,11 @@ class Navigator:
         if self.filter.history.enabled:
             self._tick_steps.append((len(self.filter.history.steps) - 1, r))
         return r
+
+
+def _largest_eig(a: float, c: float, b: float) -> float:
+    """Largest eigenvalue of the symmetric 2 x 2 matrix [[a, b], [b, c]]."""
+    return 0.5 * (a + c) + math.sqrt(0.25 * (a - c) ** 2 + b * b)
 
 
 _HANDLERS: dict[type, Any] = {

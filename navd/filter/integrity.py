@@ -1,0 +1,76 @@
+"""Integrity: can the autopilot trust the estimate, or should it surface?
+
+Every estimate carries ``integrity``: ``ok``, ``degraded`` or ``lost``, from two
+tests that do not need the truth:
+
+* **Consistency.**  Over the last ``window`` ranges the filter fused, the
+  normalised innovations squared (NIS, nu^2 / S) of a consistent filter are
+  chi-square distributed with one degree of freedom each, so their sum lies below
+  the 99 % quantile of chi-square with that many degrees of freedom (Bar-Shalom,
+  Li and Kirubarajan 2001, section 5.4).  A larger sum means the covariance
+  claims more than the ranges show: the estimate is overconfident.  A window in
+  which the gate refused most ranges says the filter and its ranges disagree.
+* **Covariance.**  The largest one-sigma axis of the position ellipse against
+  ``degraded_std_m`` and ``lost_std_m``.
+
+``lost`` means no range agrees with the estimate any more, or its own
+uncertainty is past the site's limit; an autopilot should surface for GPS.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+OK, DEGRADED, LOST = "ok", "degraded", "lost"
+
+
+def chi2_quantile(p: float, dof: int) -> float:
+    """Quantile of chi-square (Wilson and Hilferty 1931), within 1 % for dof >= 1 at p = 0.99."""
+    # the standard normal quantile at p by Abramowitz and Stegun 26.2.23 (|error| < 4.5e-4)
+    q = 1.0 - p
+    t = math.sqrt(-2.0 * math.log(q))
+    z = t - (2.515517 + 0.802853 * t + 0.010328 * t * t) / (
+        1.0 + 1.432788 * t + 0.189269 * t * t + 0.001308 * t**3
+    )
+    k = 2.0 / (9.0 * dof)
+    return dof * (1.0 - k + z * math.sqrt(k)) ** 3
+
+
+class Integrity:
+    def __init__(self, window: int, degraded_std_m: float, lost_std_m: float) -> None:
+        self.degraded_std_m = degraded_std_m
+        self.lost_std_m = lost_std_m
+        self._ranges: deque[tuple[bool, float]] = deque(maxlen=window)
+        self.reason = ""
+
+    def clear(self) -> None:
+        """A position fix (GPS) or a restart: the ranges before it say nothing now."""
+        self._ranges.clear()
+
+    def range(self, accepted: bool, nis: float) -> None:
+        self._ranges.append((accepted, nis))
+
+    def assess(self, std_max_m: float) -> str:
+        """The state, with ``reason`` saying why when it is not ``ok``."""
+        self.reason = ""
+        if not math.isfinite(std_max_m) or std_max_m > self.lost_std_m:
+            self.reason = f"position std {std_max_m:.0f} m over {self.lost_std_m:g} m"
+            return LOST
+        window = self._ranges
+        full = len(window) == window.maxlen
+        rejected = sum(1 for ok, _ in window if not ok)
+        if full and rejected == len(window):
+            self.reason = f"the last {len(window)} ranges all refused"
+            return LOST
+        if std_max_m > self.degraded_std_m:
+            self.reason = f"position std {std_max_m:.0f} m over {self.degraded_std_m:g} m"
+            return DEGRADED
+        nis = [v for ok, v in window if ok and math.isfinite(v)]
+        if len(nis) >= 3 and sum(nis) > chi2_quantile(0.99, len(nis)):
+            self.reason = f"ranges disagree with the covariance (NIS {sum(nis):.1f} in {len(nis)})"
+            return DEGRADED
+        if full and rejected > len(window) // 2:
+            self.reason = f"{rejected} of the last {len(window)} ranges refused"
+            return DEGRADED
+        return OK

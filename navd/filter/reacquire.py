@@ -1,0 +1,221 @@
+"""Re-acquisition from consistent evidence: a robust fit over the recent ranges.
+
+When the gate keeps rejecting ranges, either the estimate has drifted (the
+seed-000 Chesapeake run: a current prior too small, every range refused) or the
+ranges are bad (multipath bursts, which only lengthen a path).  Widening the
+covariance until ranges pass cannot tell the two apart: a burst of long outliers
+then opens the gate to more of them, and the current runs away (issue 9).
+
+Instead, a correction of the present position and current is looked for that
+explains the recent ranges *together*: each range, measured at its own time, is
+predicted from the present estimate moved back along the dead-reckoned track,
+plus the hypothesised position offset ``d`` and current error ``dc`` (a range
+``lag`` seconds old sees the vehicle ``lag * dc`` further back).  Candidates are
+fitted by Gauss-Newton on random minimal sets of ranges (RANSAC, Fischler and
+Bolles 1981), scored by how many ranges agree within three sigma, and the best
+is refitted on its inliers.  It is accepted only when
+
+* enough ranges agree (``min_support``, and two thirds of the window),
+* the agreeing ranges fix the position (its standard deviation is bounded), and
+* the current it implies is one water can have at this site (``max_current_mps``),
+* no range reads shorter than it predicts by more than the noise allows: multipath
+  only ever lengthens a path, so the ranges that disagree with a true correction
+  all read long.  A wrong one, bent through a burst of long replies, leaves real
+  ranges reading short.
+
+Multipath replies are long by unrelated amounts, so they do not agree with each
+other on any one hypothesis; real ranges from a drifted estimate all do.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+_ITERATIONS = 8
+_SUBSETS = 40
+_INLIER_SIGMA = 3.0
+_CURRENT_PRIOR_FRAC = 0.25  # one sigma of a current correction, of the site's maximum
+_WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, scale)
+_LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
+_MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
+_SHORT_ALLOWED = 1  # ranges reading short beyond the noise a correction may leave
+
+
+@dataclass(frozen=True, slots=True)
+class Ray:
+    """One recent range, in metres north/east/up of the present estimate."""
+
+    beacon: tuple[float, float, float]  # beacon position (up relative to the vehicle)
+    ping: tuple[float, float]  # where dead reckoning puts the vehicle when the ping left
+    reply: tuple[float, float]  # ... and when the reply arrived
+    lag_ping: float  # seconds from then to now
+    lag_reply: float
+    range_m: float
+    sigma_m: float
+    rejected: bool  # the gate refused it under the present estimate
+
+
+@dataclass(frozen=True, slots=True)
+class Hypothesis:
+    d_north: float
+    d_east: float
+    dc_north: float
+    dc_east: float
+    cov: np.ndarray  # 4 x 4 over (d_north, d_east, dc_north, dc_east)
+    inliers: int
+    window: int
+
+
+class _Rays:
+    def __init__(self, rays: list[Ray]) -> None:
+        self.B = np.array([r.beacon for r in rays])
+        self.O = np.array([r.ping for r in rays])
+        self.R = np.array([r.reply for r in rays])
+        self.lo = np.array([r.lag_ping for r in rays])
+        self.lb = np.array([r.lag_reply for r in rays])
+        self.z = np.array([r.range_m for r in rays])
+        self.sig = np.array([r.sigma_m for r in rays])
+        self.rejected = np.array([r.rejected for r in rays])
+
+    def predict(self, th: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted ranges of rays ``idx`` under ``th`` and their Jacobian (n x 4)."""
+        d, dc = th[:2], th[2:]
+        B = self.B[idx]
+        vo = B[:, :2] - (self.O[idx] + d - self.lo[idx, None] * dc)
+        vb = B[:, :2] - (self.R[idx] + d - self.lb[idx, None] * dc)
+        up2 = B[:, 2] ** 2
+        ro = np.sqrt((vo**2).sum(axis=1) + up2)
+        rb = np.sqrt((vb**2).sum(axis=1) + up2)
+        # a beacon exactly overhead has no horizontal gradient; keep the division finite
+        uo = vo / np.maximum(ro, 1e-6)[:, None]
+        ub = vb / np.maximum(rb, 1e-6)[:, None]
+        J = np.empty((len(idx), 4))
+        J[:, :2] = -0.5 * (uo + ub)
+        J[:, 2:] = 0.5 * (self.lo[idx, None] * uo + self.lb[idx, None] * ub)
+        return 0.5 * (ro + rb), J
+
+    def fit(self, idx: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Gauss-Newton from no correction; (theta, covariance) or None if it fails."""
+        th = np.zeros(4)
+        w = 1.0 / self.sig[idx] ** 2
+        N = prior
+        for _ in range(_ITERATIONS):
+            pred, J = self.predict(th, idx)
+            N = J.T @ (w[:, None] * J) + prior
+            g = J.T @ (w * (self.z[idx] - pred)) - prior @ th
+            try:
+                step = np.linalg.solve(N, g)
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(step)):
+                return None
+            th = th + step
+            if float(np.abs(step[:2]).max()) < 1e-3:
+                break
+        try:
+            cov = np.linalg.inv(N)
+        except np.linalg.LinAlgError:
+            return None
+        return th, cov
+
+    def cost(self, th: np.ndarray) -> float:
+        """Sum of squared normalised residuals, each capped as an outlier's would be."""
+        pred, _ = self.predict(th, np.arange(len(self.z)))
+        return float(np.sum(np.minimum(((self.z - pred) / self.sig) ** 2, _INLIER_SIGMA**2)))
+
+    def inliers(self, th: np.ndarray) -> np.ndarray:
+        pred, _ = self.predict(th, np.arange(len(self.z)))
+        return np.abs(self.z - pred) <= _INLIER_SIGMA * self.sig
+
+
+def _drift_prior(pos_cov: np.ndarray, since_s: float, max_current_mps: float) -> np.ndarray:
+    """Information on (d, dc) from how an estimate drifts.
+
+    Since its last anchor (a GPS fix, a re-acquisition) an estimate drifts by the
+    error of its current times the time elapsed: ``d = since * dc``, give or take its
+    covariance at the anchor and a slower wander (heading bias and speed scale turn
+    with the track).  So a correction far from the estimate needs a current error to
+    match, and a burst of outliers cannot pull the position without pulling the
+    current past what the site allows.  The current error itself is bounded by
+    physics, not by the configured prior: a prior too small is the very failure this
+    recovers from.
+    """
+    sc2 = (_CURRENT_PRIOR_FRAC * max_current_mps) ** 2
+    slack = _WANDER_MPS * since_s
+    cov_d = pos_cov + (slack * slack + 1.0) * np.eye(2)
+    W = np.linalg.inv(cov_d)
+    A = np.hstack([np.eye(2), -since_s * np.eye(2)])  # d - since * dc
+    return A.T @ W @ A + np.diag([0.0, 0.0, 1.0 / sc2, 1.0 / sc2])
+
+
+def find(
+    rays: list[Ray],
+    current: tuple[float, float],
+    pos_cov: np.ndarray,
+    since_anchor_s: float,
+    max_current_mps: float,
+    min_support: int,
+    min_rejected: int,
+    max_std_m: float,
+    seed: int,
+) -> Hypothesis | None:
+    """The correction most of the recent ranges agree on, or None when they do not agree.
+
+    It must also explain at least ``min_rejected`` of the ranges the gate refused:
+    a correction the accepted ranges alone support is no news, and replacing a
+    converged covariance by a fit over a few ranges would throw information away.
+    """
+    n = len(rays)
+    if n < min_support:
+        return None
+    r = _Rays(rays)
+    if not (np.all(np.isfinite(r.B)) and np.all(np.isfinite(r.z)) and np.all(r.sig > 0)):
+        return None
+    prior = _drift_prior(pos_cov, since_anchor_s, max_current_mps)
+    rng = np.random.default_rng(seed)
+    k = min(n, 4)
+    best: tuple[int, float, np.ndarray] | None = None
+    subsets = [np.arange(n)] + [
+        np.sort(rng.choice(n, size=k, replace=False)) for _ in range(_SUBSETS)
+    ]
+    for idx in subsets:
+        res = r.fit(idx, prior)
+        if res is None:
+            continue
+        th = res[0]
+        mask = r.inliers(th)
+        count = int(mask.sum())
+        spread = r.cost(th)
+        if best is None or (count, -spread) > (best[0], -best[1]):
+            best = (count, spread, mask)
+    if best is None or best[0] < max(min_support, math.ceil(_MAJORITY * n)):
+        return None
+    idx = np.flatnonzero(best[2])
+    res = r.fit(idx, prior)
+    if res is None:
+        return None
+    th, cov = res
+    mask = r.inliers(th)
+    count = int(mask.sum())
+    if count < max(min_support, math.ceil(_MAJORITY * n)):
+        return None
+    if int((mask & r.rejected).sum()) < min_rejected:
+        return None
+    # It must explain the ranges significantly better than the estimate as it stands:
+    # a likelihood-ratio test on the (outlier-truncated) cost, four parameters more.
+    if r.cost(np.zeros(4)) - r.cost(th) < _LR_CHI2_4DOF_99:
+        return None
+    pred, _ = r.predict(th, np.arange(n))
+    if int(np.sum(r.z - pred < -_INLIER_SIGMA * r.sig)) > _SHORT_ALLOWED:
+        return None  # it leaves real ranges reading short: not a correction, a contortion
+    pos_std = math.sqrt(max(0.0, float(np.linalg.eigvalsh(cov[:2, :2])[-1])))
+    if not (math.isfinite(pos_std) and pos_std <= max_std_m):
+        return None  # the agreeing ranges do not pin the position (one line of sight)
+    if math.hypot(current[0] + th[2], current[1] + th[3]) > max_current_mps:
+        return None
+    return Hypothesis(
+        float(th[0]), float(th[1]), float(th[2]), float(th[3]), cov, count, n
+    )
