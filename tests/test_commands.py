@@ -140,3 +140,50 @@ def test_token_bucket_refills_at_its_rate() -> None:
     assert [b.take() for _ in range(4)] == [True, True, True, False]
     t[0] = 0.5
     assert [b.take(), b.take()] == [True, False]
+
+
+def test_the_shipped_access_control_refuses_commands_of_the_unauthorised(tmp_path) -> None:
+    """config/zenoh.json5 on loopback: credentials made here, never committed."""
+    from pathlib import Path
+
+    shipped = Path(__file__).parent.parent / "config" / "zenoh.json5"
+    users = tmp_path / "zenoh-users.txt"
+    users.write_text("autopilot:pilot-secret\nobserver:watch-secret\n")
+    text = shipped.read_text()
+    assert "/etc/navd/zenoh-users.txt" in text
+    cfg_file = tmp_path / "zenoh.json5"
+    cfg_file.write_text(text.replace("/etc/navd/zenoh-users.txt", str(users)))
+    port = _free_port()
+    zc = ZenohConfig(listen=[f"tcp/127.0.0.1:{port}"], config_file=str(cfg_file))
+    loop = Loop()
+    pub = Publisher(zc, "t1", loop.loop, loop.on_command)
+
+    def session(user: str | None, password: str = "") -> zenoh.Session:
+        c = zenoh.Config()
+        c.insert_json5("mode", '"client"')
+        c.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+        c.insert_json5("scouting/multicast/enabled", "false")
+        if user:
+            c.insert_json5(
+                "transport/auth/usrpwd", json.dumps({"user": user, "password": password})
+            )
+        return zenoh.open(c)
+
+    try:
+        observer = session("observer", "watch-secret")
+        pub.put("estimate", {"t": 1.0})
+        latest = [r for r in observer.get("auv/t1/nav/latest", timeout=3.0) if r.ok is not None]
+        assert len(latest) == 1  # telemetry is the crew's
+        assert _ask(observer, "reset", b"{}") == []  # its command never reaches navd
+        assert loop.seen == []
+        observer.close()
+        for user, password in ((None, ""), ("observer", "guess")):
+            with pytest.raises(zenoh.ZError):
+                session(user, password)  # not even a session without the credentials
+        pilot = session("autopilot", "pilot-secret")
+        assert _ask(pilot, "reset", b"{}") == [{"ok": True}]
+        assert loop.seen == [("reset", {})]
+        pilot.close()
+    finally:
+        pub.close()
+        loop.close()
