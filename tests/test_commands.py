@@ -187,3 +187,125 @@ def test_the_shipped_access_control_refuses_commands_of_the_unauthorised(tmp_pat
     finally:
         pub.close()
         loop.close()
+
+
+def _openssl(*args: str, cwd) -> None:
+    import subprocess
+
+    subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True)
+
+
+def _certificates(d) -> None:
+    """A CA, the vehicle's and the shore's certificates, and a stranger's from another CA."""
+    for ca in ("ca", "other-ca"):
+        _openssl(
+            "req",
+            "-x509",
+            "-newkey",
+            "ec",
+            "-pkeyopt",
+            "ec_paramgen_curve:P-256",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            f"/CN={ca}",
+            "-keyout",
+            f"{ca}.key",
+            "-out",
+            f"{ca}.pem",
+            cwd=d,
+        )
+    (d / "san.ext").write_text("subjectAltName=DNS:localhost,IP:127.0.0.1\n")
+    for who, ca in (("vehicle", "ca"), ("shore", "ca"), ("stranger", "other-ca")):
+        _openssl(
+            "req",
+            "-newkey",
+            "ec",
+            "-pkeyopt",
+            "ec_paramgen_curve:P-256",
+            "-nodes",
+            "-subj",
+            f"/CN={who}",
+            "-keyout",
+            f"{who}.key",
+            "-out",
+            f"{who}.csr",
+            cwd=d,
+        )
+        _openssl(
+            "x509",
+            "-req",
+            "-in",
+            f"{who}.csr",
+            "-CA",
+            f"{ca}.pem",
+            "-CAkey",
+            f"{ca}.key",
+            "-CAcreateserial",
+            "-days",
+            "1",
+            "-extfile",
+            "san.ext",
+            "-out",
+            f"{who}.pem",
+            cwd=d,
+        )
+
+
+def test_a_shore_link_over_tls_with_mutual_authentication(tmp_path) -> None:
+    """The shore link of docs/zenoh.md: only a certificate of the vehicle's CA gets in."""
+    import shutil
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is needed to make the test certificates")
+    _certificates(tmp_path)
+    port = _free_port()
+
+    def tls(key: str | None, ca: str = "ca") -> str:
+        t = {"root_ca_certificate": str(tmp_path / f"{ca}.pem"), "enable_mtls": True}
+        if key:
+            t["connect_private_key"] = str(tmp_path / f"{key}.key")
+            t["connect_certificate"] = str(tmp_path / f"{key}.pem")
+        return json.dumps(t)
+
+    vehicle_cfg = tmp_path / "vehicle.json5"
+    vehicle_cfg.write_text(
+        json.dumps(
+            {
+                "transport": {
+                    "link": {
+                        "tls": {
+                            "root_ca_certificate": str(tmp_path / "ca.pem"),
+                            "listen_private_key": str(tmp_path / "vehicle.key"),
+                            "listen_certificate": str(tmp_path / "vehicle.pem"),
+                            "enable_mtls": True,
+                        }
+                    }
+                }
+            }
+        )
+    )
+    zc = ZenohConfig(listen=[f"tls/localhost:{port}"], config_file=str(vehicle_cfg))
+    loop = Loop()
+    pub = Publisher(zc, "t1", loop.loop, loop.on_command)
+
+    def session(key: str | None) -> zenoh.Session:
+        c = zenoh.Config()
+        c.insert_json5("mode", '"client"')
+        c.insert_json5("connect/endpoints", json.dumps([f"tls/localhost:{port}"]))
+        c.insert_json5("scouting/multicast/enabled", "false")
+        c.insert_json5("transport/link/tls", tls(key))
+        return zenoh.open(c)
+
+    try:
+        shore = session("shore")
+        assert _ask(shore, "reset", b"{}") == [{"ok": True}]
+        shore.close()
+        for key in (None, "stranger"):
+            with pytest.raises(zenoh.ZError):
+                session(key)
+        assert loop.seen == [("reset", {})]
+    finally:
+        pub.close()
+        loop.close()
