@@ -15,7 +15,8 @@ fitted by Gauss-Newton on random minimal sets of ranges (RANSAC, Fischler and
 Bolles 1981), scored by how many ranges agree within three sigma, and the best
 is refitted on its inliers.  It is accepted only when
 
-* enough ranges agree (``min_support``, and two thirds of the window),
+* enough ranges agree (``min_support``, and two thirds of the window), among them
+  enough of those the gate refused, twice as many when all of those read long,
 * the agreeing ranges fix the position (its standard deviation is bounded), and
 * the current it implies is one water can have at this site (``max_current_mps``),
 * no range reads shorter than it predicts by more than the noise allows: multipath
@@ -202,7 +203,13 @@ def find(
     count = int(mask.sum())
     if count < max(min_support, math.ceil(_MAJORITY * n)):
         return None
-    if int((mask & r.rejected).sum()) < min_rejected:
+    explained = mask & r.rejected
+    pred0, _ = r.predict(np.zeros(4), np.arange(n))
+    if not np.any(explained & (r.z < pred0)):
+        # every refused range it explains read long, which is also what a burst of
+        # multipath looks like: ask for twice the evidence (a real drift keeps adding it)
+        min_rejected *= 2
+    if int(explained.sum()) < min_rejected:
         return None
     # It must explain the ranges significantly better than the estimate as it stands:
     # a likelihood-ratio test on the (outlier-truncated) cost, four parameters more.
