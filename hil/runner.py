@@ -42,8 +42,17 @@ from navd.records import Depth, Gps, Heading, Rpm
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under
 _DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
-_RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply")
-_ACTIONS = ("reconnect", "disconnect", "stall", "unstall", "gps_off", "gps_on", *_RATE_ACTIONS)
+_RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply", "error_reply")
+_ACTIONS = (
+    "reconnect",
+    "disconnect",
+    "stall",
+    "unstall",
+    "gps_off",
+    "gps_on",
+    "flood",
+    *_RATE_ACTIONS,
+)
 
 
 def check_faults(faults: Any) -> list[dict[str, Any]]:
@@ -64,6 +73,10 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
         if f.get("action") not in _ACTIONS:
             raise ConfigError(f"{where}.action: expected one of {', '.join(_ACTIONS)}")
         v = f.get("value", 0.0)
+        if f["action"] == "flood" and (
+            isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 1000
+        ):
+            raise ConfigError(f"{where}.value: expected how many times each frame is sent")
         if f["action"] in _RATE_ACTIONS and (
             isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0
         ):
@@ -182,6 +195,8 @@ class Bench:
             e.port.disconnect()
         elif action in _RATE_ACTIONS:
             setattr(e.faults, action, float(value))
+        elif action == "flood":
+            e.faults.flood = int(value)
         elif action == "stall":
             e.faults.stalled = True
         elif action == "unstall":

@@ -33,6 +33,10 @@ from navd.sdnotify import Notifier
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
+# a burst of corrupt data: this many bad frames within the window is said in health
+CORRUPT_FRAMES = 3
+CORRUPT_WINDOW_S = 5.0
+_NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
 MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
 
@@ -60,6 +64,7 @@ class DeviceState:
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=2000))
     device_errors: int = 0  # the device answered with an error (Keller exception codes)
     t_device_error: float | None = None
+    bad_history: deque[tuple[float, int]] = field(default_factory=deque)  # (t, bad frames)
 
 
 def _percentile(xs: list[float], q: float) -> float | None:
@@ -382,6 +387,25 @@ class Daemon:
             if self.pub is not None:
                 self.pub.put("health", h)
 
+    def _recent_bad(self, st: DeviceState, now: float) -> int:
+        """Frames with a bad checksum or content in the last ``CORRUPT_WINDOW_S``."""
+        stats = st.decoder.stats
+        total = stats.bad_checksum + stats.bad_frame
+        st.bad_history.append((now, total))
+        while len(st.bad_history) > 1 and now - st.bad_history[1][0] >= CORRUPT_WINDOW_S:
+            st.bad_history.popleft()
+        return total - st.bad_history[0][1]
+
+    def _expected_rate(self, name: str) -> float | None:
+        """Records a second the device should give: what navd asks of it, or None."""
+        d = self.cfg.devices
+        return {
+            "ahrs": d.ahrs.rate_hz,
+            "pressure": d.pressure.poll_hz,
+            "motor": d.motor.poll_hz,
+            "gps": _NMEA_MAX_HZ,
+        }.get(name)
+
     def health(self) -> dict[str, Any]:
         now = self.clock()
         devices = {}
@@ -417,6 +441,14 @@ class Daemon:
             degraded.append(f"integrity {integrity}: {est.get('integrity_reason', '')}")
         degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv["connected"]]
         for n, st in self.devices.items():
+            bad = self._recent_bad(st, now)
+            if bad >= CORRUPT_FRAMES:
+                degraded.append(f"{n}: {bad} corrupt frames in {CORRUPT_WINDOW_S:g} s")
+            expected = self._expected_rate(n)
+            if expected is not None and devices[n]["rate_hz"] > 2.0 * expected + 1.0:
+                degraded.append(
+                    f"{n}: {devices[n]['rate_hz']:.0f} records/s, {expected:g} expected"
+                )
             if st.t_device_error is not None and now - st.t_device_error <= RECENT_S:
                 degraded.append(f"{n}: device error answers ({st.device_errors})")
             hl = st.transport.health if st.transport else None

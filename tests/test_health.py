@@ -149,3 +149,17 @@ def test_a_vehicle_that_surfaces_with_a_stalled_depth_sensor_takes_gps() -> None
     assert out[-1]["mode"] != "submerged"
     # the fixes (11 m north, at the warm-up weight) pulled the estimate most of the way
     assert out[-1]["lat"] > 37.05006
+
+
+def test_bursts_of_corrupt_data_and_a_flood_are_said(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 10.0)
+    assert d.health()["ok"]
+    d.devices["pressure"].decoder.stats.bad_checksum += 4  # a garbage burst
+    for _ in range(1000):  # and the AHRS babbling at ten times its rate (20 Hz asked)
+        d.devices["ahrs"].recent.append(clock.t)
+    h = d.health()
+    assert any(p.startswith("pressure: 4 corrupt frames") for p in h["degraded"])
+    assert any(p.startswith("ahrs: ") and "records/s" in p for p in h["degraded"])
+    _navigate(d, clock, 6.0)  # the burst is over, the flood too
+    assert not [p for p in d.health()["degraded"] if "corrupt" in p or "records/s" in p]

@@ -21,6 +21,8 @@ class Faults:
     drop_reply: float = 0.0  # a request never answered
     reply_delay_s: float = 0.0  # extra delay before answering
     stalled: bool = False  # the device says nothing at all
+    flood: int = 1  # every frame sent this many times (a babbling device)
+    error_reply: float = 0.0  # a command answered with an error (the modem's ERROR)
 
 
 class Emulator:
@@ -55,7 +57,7 @@ class Emulator:
         if f.garbage and self.rng.random() < f.garbage:
             out[0:0] = bytes(self.rng.randrange(256) for _ in range(self.rng.randrange(1, 12)))
         self.frames_sent += 1
-        self.port.write(bytes(out))
+        self.port.write(bytes(out) * max(1, f.flood))
 
     def reply(self, frame: bytes, delay_s: float = 0.0) -> None:
         """Answer a request, late or never if so faulted."""

@@ -51,6 +51,8 @@ class ModemEmulator(Emulator):
             return
         if line == "AT":
             self.reply(b"OK\r\n")
+        elif self.faults.error_reply and self.rng.random() < self.faults.error_reply:
+            self.reply(b"ERROR\r\n")
         elif line.startswith("ATRX") or line.startswith("ATR"):
             digits = line[4:] if line.startswith("ATRX") else line[3:]
             if not digits.isdigit() or self.busy:

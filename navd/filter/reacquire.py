@@ -223,6 +223,4 @@ def find(
         return None  # the agreeing ranges do not pin the position (one line of sight)
     if math.hypot(current[0] + th[2], current[1] + th[3]) > max_current_mps:
         return None
-    return Hypothesis(
-        float(th[0]), float(th[1]), float(th[2]), float(th[3]), cov, count, n
-    )
+    return Hypothesis(float(th[0]), float(th[1]), float(th[2]), float(th[3]), cov, count, n)
