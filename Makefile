@@ -4,7 +4,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon clean
+.PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
+	bench-robustness bench-soak clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -46,6 +47,14 @@ bench-decode: $(STAMP)
 
 bench-daemon: $(STAMP)
 	$(BIN)/python -m bench.daemon_perf --seconds 600 --write BENCHMARKS.md
+
+# 120 missions with drawn sensor errors and conditions (about 30 minutes on 2 cores)
+bench-robustness: $(STAMP)
+	$(BIN)/python -m bench.robustness --missions 120 --write BENCHMARKS.md
+
+# an hour of the daemon under faults; needs unshare and mount (root) for the full-disk fault
+bench-soak: $(STAMP)
+	$(BIN)/python -m bench.soak --minutes 60 --write BENCHMARKS.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -35,7 +35,9 @@ log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
 # a burst of corrupt data: this many bad frames within the window is said in health
 CORRUPT_FRAMES = 3
+CORRUPT_BYTES = 64
 CORRUPT_WINDOW_S = 5.0
+SILENT_S = 3.0  # a streaming or polled device this long without a byte is said silent
 _NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
 MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
@@ -64,7 +66,8 @@ class DeviceState:
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=2000))
     device_errors: int = 0  # the device answered with an error (Keller exception codes)
     t_device_error: float | None = None
-    bad_history: deque[tuple[float, int]] = field(default_factory=deque)  # (t, bad frames)
+    # (t, bad frames, skipped bytes) at each health tick: what the last seconds brought
+    bad_history: deque[tuple[float, int, int]] = field(default_factory=deque)
 
 
 def _percentile(xs: list[float], q: float) -> float | None:
@@ -387,14 +390,15 @@ class Daemon:
             if self.pub is not None:
                 self.pub.put("health", h)
 
-    def _recent_bad(self, st: DeviceState, now: float) -> int:
-        """Frames with a bad checksum or content in the last ``CORRUPT_WINDOW_S``."""
+    def _recent_bad(self, st: DeviceState, now: float) -> tuple[int, int]:
+        """Bad frames (checksum or content) and skipped bytes in the last ``CORRUPT_WINDOW_S``."""
         stats = st.decoder.stats
-        total = stats.bad_checksum + stats.bad_frame
-        st.bad_history.append((now, total))
+        st.bad_history.append((now, stats.bad_checksum + stats.bad_frame, stats.skipped_bytes))
         while len(st.bad_history) > 1 and now - st.bad_history[1][0] >= CORRUPT_WINDOW_S:
             st.bad_history.popleft()
-        return total - st.bad_history[0][1]
+        _, bad0, skipped0 = st.bad_history[0]
+        _, bad1, skipped1 = st.bad_history[-1]
+        return bad1 - bad0, skipped1 - skipped0
 
     def _expected_rate(self, name: str) -> float | None:
         """Records a second the device should give: what navd asks of it, or None."""
@@ -441,10 +445,15 @@ class Daemon:
             degraded.append(f"integrity {integrity}: {est.get('integrity_reason', '')}")
         degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv["connected"]]
         for n, st in self.devices.items():
-            bad = self._recent_bad(st, now)
-            if bad >= CORRUPT_FRAMES:
-                degraded.append(f"{n}: {bad} corrupt frames in {CORRUPT_WINDOW_S:g} s")
+            bad, skipped = self._recent_bad(st, now)
+            if bad >= CORRUPT_FRAMES or skipped >= CORRUPT_BYTES:
+                degraded.append(
+                    f"{n}: {bad} corrupt frames, {skipped} bytes skipped in {CORRUPT_WINDOW_S:g} s"
+                )
             expected = self._expected_rate(n)
+            age = devices[n]["last_rx_age_s"]
+            if expected is not None and age is not None and age > SILENT_S:
+                degraded.append(f"{n}: silent for {age:.0f} s")
             if expected is not None and devices[n]["rate_hz"] > 2.0 * expected + 1.0:
                 degraded.append(
                     f"{n}: {devices[n]['rate_hz']:.0f} records/s, {expected:g} expected"

@@ -29,6 +29,7 @@ from navd.records import (
     Reset,
     Rpm,
     SetBeacon,
+    Tick,
     TravelTime,
     Velocity,
     implausible,
@@ -196,6 +197,11 @@ def iter_lines(
                 obj = jsonlines.loads(line)
             except jsonlines.DecodeError as exc:
                 raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
+            if isinstance(obj, dict) and obj.get("type") == "estimate":
+                t_tick = obj.get("t")
+                if isinstance(t_tick, float | int) and math.isfinite(t_tick):
+                    yield no, Tick(float(t_tick))  # where the daemon stepped its filter
+                continue
             if isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
                 continue
             rec = parse_record(obj)

@@ -113,8 +113,21 @@ class SetBeacon:
     depth: float = 0.0
 
 
+@dataclass(frozen=True, slots=True)
+class Tick:
+    """A filter step the daemon took at ``t``, read back from its log (an ``estimate`` line).
+
+    Live, the 10 Hz tick runs between serial records; a range completed after a tick
+    is fused after it.  Replay steps the filter at the same places in the record stream,
+    so it reproduces the live estimates exactly.  Not a measurement: never written.
+    """
+
+    t: float
+
+
 Record = (
-    Heading
+    Tick
+    | Heading
     | Attitude
     | Rpm
     | Depth

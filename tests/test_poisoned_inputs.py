@@ -264,3 +264,34 @@ def test_replay_passes_over_an_empty_file_among_rotated_logs(tmp_path: Path) -> 
     assert any(o["type"] == "estimate" for o in res.outputs)
     with pytest.raises(LogError):
         read_measurement_log(empty)
+
+
+def test_a_daemon_log_replays_its_ticks_where_they_were_taken() -> None:
+    """Live, a range completed after a tick is fused after it; replay must do the same.
+
+    The log holds the tick (its ``estimate`` line) before the late range, and replay
+    steps the filter there: the estimate at the tick does not see the range.
+    """
+    from navd.records import Tick
+
+    def replay(lines: list[str]) -> dict[float, dict]:
+        nav = Navigator(config_from_dict({"navigation": {"speed": {"rpm_per_mps": 1000.0}}}))
+        out: list[dict] = []
+        for _, rec in iter_lines(lines):
+            assert not isinstance(rec, Skipped)
+            out += nav.feed(rec)
+        return {o["t"]: o for o in out if o["type"] == "estimate"}
+
+    head = [f'{{"type":"gps","t":{k / 10},"lat":37.05,"lon":-80.66,"fix":1}}\n' for k in range(50)]
+    head += ['{"type":"depth","t":5.01,"m":2.0}\n', '{"type":"rpm","t":5.02,"rpm":1000}\n']
+    late = '{"type":"range","t":9.96,"t_ping":9.5,"m":106.0,"beacon":"udb",'
+    late += '"beacon_lat":37.051,"beacon_lon":-80.66}\n'
+    body = [f'{{"type":"heading","t":{5.05 + 0.1 * k:.2f},"deg":0.0}}\n' for k in range(50)]
+    tick = '{"type":"estimate","t":10.0,"lat":0,"lon":0}\n'
+    after = ['{"type":"heading","t":10.05,"deg":0.0}\n']
+    logged = replay(head + body + [tick, late] + after)  # as the daemon wrote it
+    fused = replay(head + body + [late] + after)  # had the range come before the tick
+    assert fused[10.0]["std_n"] < logged[10.0]["std_n"]  # (it is accepted: it matters)
+    without = replay(head + body + after)  # the range never came
+    assert logged[10.0]["std_n"] == without[10.0]["std_n"]  # the tick did not see it
+    assert isinstance(next(r for _, r in iter_lines([tick])), Tick)

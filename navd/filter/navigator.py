@@ -41,6 +41,7 @@ from navd.records import (
     Reset,
     Rpm,
     SetBeacon,
+    Tick,
     TravelTime,
     Velocity,
     implausible,
@@ -50,6 +51,7 @@ from navd.vlbl import NetRange, VirtualNet
 _GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
 _GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
 _FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
+_TICK_SLACK_S = 1e-6  # far below a tick (0.01 s at 100 Hz), far above float rounding
 # Depth older than this is not trusted to refuse a GPS fix: a fix can only come with
 # the antenna out of the water, so a stalled pressure sensor must not keep the
 # vehicle "submerged" after it has surfaced.
@@ -123,6 +125,9 @@ class Navigator:
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
         """Consume one record; return the outputs (ticks before it, its decision)."""
+        if isinstance(rec, Tick):
+            # the log rounds a tick's time to 1 ns; k * dt may lie a hair above it
+            return self.advance(rec.t + _TICK_SLACK_S)
         why = implausible(rec)
         if why is not None:
             # the decoders and the log reader refuse these already; records made by
