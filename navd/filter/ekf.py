@@ -359,7 +359,10 @@ class RangeEKF:
             self._rays(),
             (float(self.x[2]), float(self.x[3])),
             self.P[:2, :2].copy(),
-            max(0.0, self.t - self.t_anchor),
+            self.P[2:4, 2:4].copy(),
+            # a drift older than the window would have shown in the ranges before it,
+            # which the covariance already holds
+            min(max(0.0, self.t - self.t_anchor), _WINDOW_S),
             self.max_current,
             _MIN_SUPPORT,
             self.reacquire_after if min_rejected is None else min_rejected,

@@ -38,7 +38,8 @@ import numpy as np
 _ITERATIONS = 8
 _SUBSETS = 40
 _INLIER_SIGMA = 3.0
-_CURRENT_PRIOR_FRAC = 0.25  # one sigma of a current correction, of the site's maximum
+_CURRENT_PRIOR_FRAC = 0.25  # one sigma of a current correction, at most, of the site's maximum
+_CURRENT_FLOOR_MPS = 0.1  # ... and at least
 _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, scale)
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
@@ -132,7 +133,9 @@ class _Rays:
         return np.abs(self.z - pred) <= _INLIER_SIGMA * self.sig
 
 
-def _drift_prior(pos_cov: np.ndarray, since_s: float, max_current_mps: float) -> np.ndarray:
+def _drift_prior(
+    pos_cov: np.ndarray, cur_cov: np.ndarray, since_s: float, max_current_mps: float
+) -> np.ndarray:
     """Information on (d, dc) from how an estimate drifts.
 
     Since its last anchor (a GPS fix, a re-acquisition) an estimate drifts by the
@@ -142,9 +145,14 @@ def _drift_prior(pos_cov: np.ndarray, since_s: float, max_current_mps: float) ->
     match, and a burst of outliers cannot pull the position without pulling the
     current past what the site allows.  The current error itself is bounded by
     physics, not by the configured prior: a prior too small is the very failure this
-    recovers from.
+    recovers from.  It is three times the filter's own current uncertainty (at least
+    ``_CURRENT_FLOOR_MPS``), up to a quarter of the site's maximum: a filter that has
+    learned its current is not talked out of it by a trend in a few ranges from one
+    distant beacon, which a position change across the line of sight explains as well.
     """
-    sc2 = (_CURRENT_PRIOR_FRAC * max_current_mps) ** 2
+    cur_std = math.sqrt(max(0.0, float(np.linalg.eigvalsh(cur_cov)[-1])))
+    sc = min(_CURRENT_PRIOR_FRAC * max_current_mps, max(3.0 * cur_std, _CURRENT_FLOOR_MPS))
+    sc2 = sc * sc
     slack = _WANDER_MPS * since_s
     cov_d = pos_cov + (slack * slack + 1.0) * np.eye(2)
     W = np.linalg.inv(cov_d)
@@ -156,6 +164,7 @@ def find(
     rays: list[Ray],
     current: tuple[float, float],
     pos_cov: np.ndarray,
+    cur_cov: np.ndarray,
     since_anchor_s: float,
     max_current_mps: float,
     min_support: int,
@@ -175,7 +184,7 @@ def find(
     r = _Rays(rays)
     if not (np.all(np.isfinite(r.B)) and np.all(np.isfinite(r.z)) and np.all(r.sig > 0)):
         return None
-    prior = _drift_prior(pos_cov, since_anchor_s, max_current_mps)
+    prior = _drift_prior(pos_cov, cur_cov, since_anchor_s, max_current_mps)
     rng = np.random.default_rng(seed)
     k = min(n, 4)
     best: tuple[int, float, np.ndarray] | None = None
