@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.common import report
-from hil.bench_vehicle import BIN, free_port
+from hil.bench_vehicle import BIN, free_port, replay_against_live
 
 SCENARIO = "survey-1h"
 DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
@@ -257,7 +257,7 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
         said_s = "not said" if late else f"{t_said:.0f} s"
         ok_s = "-" if t_ok is None else f"{t_ok:.0f} s"
         rows.append(f"| {f.name} | {f.start:.0f} | {said_s} | {ok_s} |")
-    replay_worst = _replay_check(d, files, work)
+    check = replay_against_live(files, d / "navd.yaml", work / "replay.jsonl")
     rss0, fd0 = samples.get("start", (math.nan, 0))
     rss1, fd1 = samples.get("end", (math.nan, 0))
     out = [
@@ -274,7 +274,8 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
         f"(growth {rss1 - rss0:+.1f} MB, target < 10); open files {fd0} and {fd1}",
         f"- exceptions on the daemon's stderr: {exceptions}",
         f"- command spam: {spam}",
-        f"- the whole log replayed: largest difference from the live estimates {replay_worst:.1e}",
+        f"- the whole log replayed: {check.common} of {check.live} estimates at the same times, "
+        f"largest difference from the live ones {check.worst:.1e}",
         "",
         "| fault | at (s) | health said it after | health ok again after the fault |",
         "|---|---|---|---|",
@@ -285,38 +286,6 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
 
 def _says(h: dict, words: tuple[str, ...]) -> bool:
     return any(any(w in p for w in words) for p in h.get("degraded", []))
-
-
-def _replay_check(d: Path, files: list[Path], work: Path) -> float:
-    out = work / "replay.jsonl"
-    subprocess.run(
-        [
-            str(BIN / "navd"),
-            "replay",
-            *map(str, files),
-            "--config",
-            str(d / "navd.yaml"),
-            "--out",
-            str(out),
-        ],
-        capture_output=True,
-        check=False,
-    )
-    if not out.exists():
-        return math.inf
-    live = {
-        o["t"]: o
-        for f in files
-        for o in map(json.loads, f.read_text().splitlines())
-        if o.get("type") == "estimate"
-    }
-    worst = 0.0
-    for line in out.read_text().splitlines():
-        o = json.loads(line)
-        if o["type"] == "estimate" and o["t"] in live:
-            for k in ("lat", "lon", "std_n", "std_e"):
-                worst = max(worst, abs(o[k] - live[o["t"]][k]))
-    return worst
 
 
 def main() -> int:

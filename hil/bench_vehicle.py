@@ -8,14 +8,51 @@ several bench vehicles (or a test run beside a demo) never collide.
 from __future__ import annotations
 
 import json
+import math
 import signal
 import socket
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
 BIN = Path(sys.executable).parent
+_COMPARED = ("lat", "lon", "std_n", "std_e", "current_n", "current_e")
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayCheck:
+    """How a daemon's log replays against the estimates it published live."""
+
+    returncode: int
+    stderr: str
+    live: int  # estimates in the log
+    common: int  # of those, replayed at the same time
+    worst: float  # largest difference over the compared fields
+
+
+def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayCheck:
+    """``navd replay`` the daemon's log files and compare with the estimates they hold."""
+    r = subprocess.run(
+        [str(BIN / "navd"), "replay", *map(str, logs), "--config", str(config), "--out", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    live = {
+        o["t"]: o
+        for f in logs
+        for o in map(json.loads, f.read_text().splitlines())
+        if o.get("type") == "estimate"
+    }
+    replayed = {}
+    if r.returncode == 0:
+        replayed = {o["t"]: o for o in map(json.loads, out.read_text().splitlines())}
+    common = [t for t in live if t in replayed and replayed[t]["type"] == "estimate"]
+    worst = max(
+        (abs(live[t][k] - replayed[t][k]) for t in common for k in _COMPARED), default=math.inf
+    )
+    return ReplayCheck(r.returncode, r.stderr, len(live), len(common), worst)
 
 
 def free_port() -> int:

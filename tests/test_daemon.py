@@ -9,7 +9,6 @@ import json
 import math
 import os
 import signal
-import subprocess
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -17,7 +16,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from hil.bench_vehicle import BIN, BenchVehicle
+from hil.bench_vehicle import BenchVehicle, replay_against_live
 from hil.score import read_jsonl
 from navd.config import load_config
 from navd.mlog import read_measurement_log
@@ -155,33 +154,11 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
 
     # live equals replay: the log replays to the same estimates to 1e-9
     (logfile,) = sorted((mission_dir / "log").glob("*.jsonl"))
-    out = mission_dir / "replay.jsonl"
-    r = subprocess.run(
-        [
-            str(BIN / "navd"),
-            "replay",
-            str(logfile),
-            "--config",
-            str(mission_dir / "navd.yaml"),
-            "--out",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 0, r.stderr
-    logged = read_jsonl(logfile)
-    assert [o.get("type") for o in logged].count("cmd_reset") == 1
-    live = {o["t"]: o for o in logged if o.get("type") == "estimate"}
-    replayed = {o["t"]: o for o in read_jsonl(out) if o["type"] == "estimate"}
-    common = sorted(set(live) & set(replayed))
-    assert len(common) >= len(live) - 1
-    worst = max(
-        abs(live[t][k] - replayed[t][k])
-        for t in common
-        for k in ("lat", "lon", "std_n", "std_e", "current_n", "current_e")
-    )
-    assert worst <= 1e-9
+    check = replay_against_live([logfile], mission_dir / "navd.yaml", mission_dir / "replay.jsonl")
+    assert check.returncode == 0, check.stderr
+    assert [o.get("type") for o in read_jsonl(logfile)].count("cmd_reset") == 1
+    assert check.common >= check.live - 1
+    assert check.worst <= 1e-9
 
 
 def test_faults_on_every_port_and_the_daemon_keeps_navigating(mission_dir: Path) -> None:
