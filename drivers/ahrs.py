@@ -11,7 +11,14 @@ From the 3DM-GX3-25 Single Byte Data Communications Protocol (docs/protocols.md)
 * 0xDB sampling settings: ``0xDB 0xA8 0xB9 <function> <decimation u16> <flags u16>
   <gyro window u8> <mag window u8> <up u16> <north u16> <mag bandwidth u8> 0 0 0 0 0``
   (20 bytes); the device answers ``0xDB`` with the settings and a checksum (19 bytes).
-  The data rate is 1000 Hz / decimation.
+  The data rate is 1000 Hz / decimation.  Flag bit 0 enables the orientation
+  computation, bit 1 coning and sculling compensation.
+* 0xE9 firmware version: answered ``0xE9 <version u32> checksum`` (7 bytes; LSTS DUNE
+  probes the device with it).  navd sends it on every open.
+* ``21 00 21``: the device refuses a command whose confirmation bytes are wrong.
+
+Units with 2.x firmware speak MIP instead (frames ``75 65 <set> <length> ...
+<Fletcher-16>``): they are recognised, counted, and refused as a device error.
 
 Yaw is what navd uses: reported in degrees clockwise from magnetic north.
 """
@@ -22,16 +29,21 @@ import math
 import struct
 from dataclasses import dataclass
 
-from drivers.codec import FrameDecoder
+from drivers.codec import DeviceError, FrameDecoder
 from navd.records import Attitude
 
 CMD_EULER = 0xCE
 CMD_CONTINUOUS = 0xC4
 CMD_SAMPLING = 0xDB
+CMD_FIRMWARE = 0xE9
+REFUSED = bytes([0x21, 0x00, 0x21])
+MIP_SYNC = bytes([0x75, 0x65])
 TIMER_HZ = 62_500.0
+# orientation (bit 0) with coning and sculling compensation (bit 1)
+_SAMPLING_FLAGS = 0x0003
 # what the device sends, by its first byte: the 0xCE Euler record and the replies to
-# the commands navd sends (set continuous mode, write sampling settings)
-_FRAME_LENGTHS = {CMD_EULER: 19, CMD_CONTINUOUS: 8, CMD_SAMPLING: 19}
+# the commands navd sends (set continuous mode, write sampling settings, firmware)
+_FRAME_LENGTHS = {CMD_EULER: 19, CMD_CONTINUOUS: 8, CMD_SAMPLING: 19, CMD_FIRMWARE: 7}
 
 
 def checksum(data: bytes) -> int:
@@ -47,13 +59,26 @@ def encode_continuous(command: int = CMD_EULER) -> bytes:
 
 
 def encode_sampling(rate_hz: float, function: int = 1) -> bytes:
-    """Set (function 1) the data rate; flags 0x0003 stream and enable orientation."""
+    """Set (function 1) the data rate, with orientation and coning/sculling compensation."""
     decimation = max(1, min(1000, round(1000.0 / rate_hz)))
     return (
         bytes([CMD_SAMPLING, 0xA8, 0xB9, function])
-        + struct.pack(">HHBBHHB", decimation, 0x0003, 15, 17, 10, 10, 0)
+        + struct.pack(">HHBBHHB", decimation, _SAMPLING_FLAGS, 15, 17, 10, 10, 0)
         + bytes(5)
     )
+
+
+def encode_firmware_probe() -> bytes:
+    return bytes([CMD_FIRMWARE])
+
+
+def fletcher16(data: bytes) -> bytes:
+    """MIP's checksum (two running byte sums)."""
+    a = b = 0
+    for x in data:
+        a = (a + x) & 0xFF
+        b = (b + a) & 0xFF
+    return bytes([a, b])
 
 
 def encode_euler_poll() -> bytes:
@@ -76,14 +101,43 @@ class Euler:
     timer_s: float
 
 
+@dataclass(frozen=True, slots=True)
+class Firmware:
+    t: float
+    version: int  # e.g. 1134 for 1.1.34
+
+
+MIP_ERROR = 0x7565  # the DeviceError code of a MIP frame
+
+
 class AhrsDecoder(FrameDecoder):
     def _frame_length(self, buf: bytearray) -> int | None:
+        if buf[0] == REFUSED[0]:
+            return len(REFUSED) if buf[1:2] in (b"", REFUSED[1:2]) else None
+        if buf[0] == MIP_SYNC[0]:
+            if len(buf) < 4:
+                return 0 if buf[1:2] in (b"", MIP_SYNC[1:]) else None
+            return 6 + buf[3] if buf[1] == MIP_SYNC[1] else None
         return _FRAME_LENGTHS.get(buf[0])
 
     def _checksum_ok(self, frame: bytes) -> bool:
+        if frame[0] == REFUSED[0]:
+            return frame == REFUSED
+        if frame[:2] == MIP_SYNC:
+            return fletcher16(frame[:-2]) == frame[-2:]
         return checksum(frame[:-2]) == int.from_bytes(frame[-2:], "big")
 
     def _parse(self, f: bytes, t: float) -> object | None:
+        if f == REFUSED:
+            return DeviceError(t, REFUSED[0], "refused a command (wrong confirmation bytes)")
+        if f[:2] == MIP_SYNC:
+            return DeviceError(
+                t,
+                MIP_ERROR,
+                "speaks MIP (a 2.x firmware unit): navd needs the single-byte protocol",
+            )
+        if f[0] == CMD_FIRMWARE:
+            return Firmware(t, int.from_bytes(f[1:5], "big"))
         if f[0] == CMD_EULER:
             roll, pitch, yaw, timer = struct.unpack(">fffI", f[1:17])
             if not all(math.isfinite(v) and abs(v) <= 2 * math.pi for v in (roll, pitch, yaw)):

@@ -34,6 +34,22 @@ class DecodeStats:
         self.reasons[reason] = self.reasons.get(reason, 0) + 1
 
 
+@dataclass(frozen=True, slots=True)
+class DeviceError:
+    """The device answered, but with an error in place of a reading.
+
+    Not a measurement: the daemon counts it apart and shows ``what`` in health.
+    ``code`` is the device's own (an exception code, a status byte, a register);
+    ``send`` is what the device needs to be told to recover, if anything (sans-I/O:
+    the decoder says it, the daemon writes it).
+    """
+
+    t: float
+    code: int
+    what: str
+    send: bytes = b""
+
+
 class FrameDecoder:
     """Binary frames whose first bytes give their length, closed by a checksum.
 

@@ -119,7 +119,7 @@ class NmeaDecoder:
                 self.stats.reasons.get(f"quality_{quality}", 0) + 1
             )
         if fix == 0 or not msg.lat or not msg.lon:
-            return Gps(t, None, None, None, 0, hdop)
+            return Gps(t, None, None, None, 0, hdop, quality)
         if msg.lat_dir not in ("N", "S") or msg.lon_dir not in ("E", "W"):
             # pynmea2 reads a missing hemisphere as north/east: that would be a fix at
             # the wrong place (or 0, 0), so the sentence is refused
@@ -129,7 +129,7 @@ class NmeaDecoder:
         alt = _f(msg.altitude)
         sep = _f(msg.geo_sep)
         h = None if alt is None else alt + (sep or 0.0)
-        rec = Gps(t, lat, lon, h, fix, hdop)
+        rec = Gps(t, lat, lon, h, fix, hdop, quality)
         why = implausible(rec)
         if why is not None:
             self.stats.bad("implausible")

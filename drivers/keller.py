@@ -6,13 +6,15 @@ and the answer repeats ``addr, function`` followed by its data and CRC16.  Used 
 * F48 initialise: request ``addr 0x30 crc``; answer ``addr 0x30 class group year week
   buffer state crc`` (10 bytes).
 * F73 read a float channel: request ``addr 0x49 channel crc``; answer ``addr 0x49 b3 b2 b1
-  b0 state crc`` (9 bytes, IEEE-754 big-endian).  Channel 1 is P1 in bar (absolute for
-  the PA-30X), channel 4 is TOB1, the sensor temperature in degrees C.
-* An exception answer is ``addr (function | 0x80) code crc`` (5 bytes).
+  b0 status crc`` (9 bytes, IEEE-754 big-endian).  Channel 1 is P1 in bar (absolute for
+  the PA-30X), channel 4 is TOB1, the sensor temperature in degrees C.  Status bit 1
+  flags a P1 measuring error and bit 4 a TOB1 error (*Communication protocol Serie 30*
+  v2.2, section 4.8): such a reading is an error, not a value.
+* An exception answer is ``addr (function | 0x80) code crc`` (5 bytes); code 32 means
+  the device has not been initialised since power-up.
 
 CRC16 is the Modbus polynomial (0xA001 reflected, initial 0xFFFF), sent high byte
-first by Keller devices; the decoder accepts either byte order because firmware
-documents have differed.
+first (the manual's example ``FA 30 04 43``; LSTS DUNE, Sensors/Keller, does the same).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import struct
 from collections import deque
 from dataclasses import dataclass
 
-from drivers.codec import FrameDecoder
+from drivers.codec import DeviceError, FrameDecoder
 from navd.records import Pressure, implausible
 
 F_INIT = 48
@@ -31,6 +33,8 @@ CH_TEMPERATURE = 4
 # exception code 32: the device has not been initialised (after a power blip); F48 again
 # (LSTS DUNE, Sensors/Keller)
 E_NOT_INITIALISED = 32
+# the status bit that flags each channel's reading as a measuring error
+STATUS_ERROR = {CH_PRESSURE: 0x02, CH_TEMPERATURE: 0x10}
 _LENGTHS = {F_INIT: 10, F_READ_FLOAT: 9, F_INIT | 0x80: 5, F_READ_FLOAT | 0x80: 5}
 
 
@@ -70,13 +74,6 @@ class Temperature:
     c: float
 
 
-@dataclass(frozen=True, slots=True)
-class DeviceError:
-    t: float
-    function: int
-    code: int
-
-
 class KellerDecoder(FrameDecoder):
     """Answers from one device address; channels of F73 answers are matched FIFO to requests."""
 
@@ -100,19 +97,25 @@ class KellerDecoder(FrameDecoder):
         return _LENGTHS.get(buf[1])
 
     def _checksum_ok(self, frame: bytes) -> bool:
-        crc = crc16(frame[:-2])
-        return frame[-2:] in (crc.to_bytes(2, "big"), crc.to_bytes(2, "little"))
+        return crc16(frame[:-2]).to_bytes(2, "big") == frame[-2:]
 
     def _parse(self, f: bytes, t: float) -> object | None:
         fn = f[1]
         if fn & 0x80:
             if fn & 0x7F == F_READ_FLOAT and self._pending:
                 self._pending.popleft()  # that request is answered: the next is another's
-            return DeviceError(t, fn & 0x7F, f[2])
+            code = f[2]
+            # not initialised (a power blip): F48 again, as DUNE's Keller task does
+            send = self.request_init() if code == E_NOT_INITIALISED else b""
+            return DeviceError(t, code, f"F{fn & 0x7F} exception {code}", send)
         if fn == F_INIT:
             return DeviceInfo(t, f[2], f[3], f[4], f[5])
         (value,) = struct.unpack(">f", f[2:6])
         channel = self._pending.popleft() if self._pending else CH_PRESSURE
+        status = f[6]
+        if status & STATUS_ERROR.get(channel, 0):
+            name = "P1" if channel == CH_PRESSURE else "TOB1"
+            return DeviceError(t, status, f"{name} measuring error (status 0x{status:02X})")
         if channel == CH_TEMPERATURE:
             if not -60.0 <= value <= 150.0:  # NaN fails too: the sensor says nonsense
                 self.stats.bad("bad_value")

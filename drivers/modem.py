@@ -5,14 +5,22 @@ navd asks the modem for the range to the UDB-9400 deck box with ``ATRX<addr>``
 position (latitude, longitude, depth) which the modem prints after the range.
 Replies are CR LF terminated text lines (docs/protocols.md, "Benthos"):
 
-    Range 1 to 2 : 153.4 m
+    TX time ...
+    Range 1 to 2 : 153.4 m  (Round-trip  204.5 ms) speed  0.0 m/s
     Remote Lat: 37.0490112 Lon: -80.6670001 Depth: 3.0
     OK
 
-A ping that gets no answer ends with ``Response Not Received`` (or ``Timeout``), a
-refused command with ``ERROR``.  Parsing is by pattern and tolerant of spacing,
-case and of the location line being absent or garbled (then the range is kept and
-its location left empty).
+The ``Range`` line alone is the ranging result (the Goby3 ATM-900 driver reads it
+so).  Its location line, when the deck box sends one, follows at once: the range is
+held for it at most ``LOCATION_WAIT_S`` after its own line, and whatever comes first
+-- the location, any other line, or ``expire(t)`` past the wait -- completes it.  It
+keeps the time its own line arrived.
+
+A ping that gets no answer ends with ``Response Not Received.`` after the modem's own
+timeout (or ``Timeout``).  The modem refuses a command with ``ERROR``, and its shell
+refuses one it does not know with ``Command '...' not found``: both are refusals.
+Parsing is by pattern and tolerant of spacing, case and of the location line being
+absent or garbled (then the range is kept and its location left empty).
 """
 
 from __future__ import annotations
@@ -30,7 +38,13 @@ _LOC = re.compile(
     re.I,
 )
 _NO_REPLY = re.compile(rb"response not received|timeout|timed out", re.I)
+_REFUSED = re.compile(rb"^error\b|^command\s+'.*'\s+not\s+found", re.I)
+# lines the modem prints that carry nothing for ranging: the transmit report before a
+# range, received data packets, mode changes, the shell prompt
+_IGNORED = re.compile(rb"^(tx time|data\(|source\s*:|crc\s*:|<eop>|connect|user:|at|>)", re.I)
 _MAX_LINE = 200
+# the location line follows its range line at once (about 55 bytes: 60 ms at 9600 baud)
+LOCATION_WAIT_S = 0.5
 
 
 def encode_range(remote: int) -> bytes:
@@ -53,7 +67,8 @@ class ModemRange:
 
 @dataclass(frozen=True, slots=True)
 class ModemReply:
-    """The end of a command: ``ok``, ``error`` or ``no_reply`` (the remote never answered)."""
+    """The end of a command: ``ok``, ``refused`` (``ERROR`` or ``Command '...' not found``)
+    or ``no_reply`` (the remote never answered)."""
 
     t: float
     status: str
@@ -95,6 +110,12 @@ class ModemDecoder:
                 out.extend(self._line(line, t))
         return out
 
+    def expire(self, t: float) -> list[object]:
+        """The held range, once its location line has had ``LOCATION_WAIT_S`` to come."""
+        if self._range is not None and t - self._range.t >= LOCATION_WAIT_S:
+            return self._flush()
+        return []
+
     def _flush(self) -> list[object]:
         if self._range is None:
             return []
@@ -131,11 +152,11 @@ class ModemDecoder:
             return self._flush()
         if line.upper() == b"OK":
             return [*self._flush(), ModemReply(t, "ok")]
-        if line.upper().startswith(b"ERROR"):
-            return [*self._flush(), ModemReply(t, "error")]
+        if _REFUSED.search(line):
+            return [*self._flush(), ModemReply(t, "refused")]
         if _NO_REPLY.search(line):
             return [*self._flush(), ModemReply(t, "no_reply")]
-        if line.upper().startswith(b"AT") or line == b">":
-            return []  # the modem's echo of our command, or its prompt
-        self.stats.skip(len(line), "unrecognised")
-        return []
+        out = self._flush()
+        if not _IGNORED.search(line):
+            self.stats.skip(len(line), "unrecognised")
+        return out

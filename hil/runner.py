@@ -117,6 +117,9 @@ class Bench:
             n: getattr(parsed.devices, n).baudrate
             for n in ("ahrs", "gps", "pressure", "motor", "modem")
         }
+        # the emulated devices are set up as the config says the real ones are
+        self.modem_timeout_s = parsed.devices.modem.modem_timeout_s
+        self.motor_id = parsed.devices.motor.device_id
         (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
         with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
             for s in self.mission.truth:
@@ -138,11 +141,14 @@ class Bench:
             "ahrs": AhrsEmulator(d / "ahrs", seed=1, baudrate=b["ahrs"]),
             "gps": GpsEmulator(d / "gps", seed=2, baudrate=b["gps"]),
             "pressure": KellerEmulator(d / "pressure", addr=1, seed=3, baudrate=b["pressure"]),
-            "motor": CastleEmulator(d / "motor", seed=4, baudrate=b["motor"]),
+            "motor": CastleEmulator(
+                d / "motor", seed=4, baudrate=b["motor"], device_id=self.motor_id
+            ),
             "modem": ModemEmulator(
                 d / "modem",
                 modem_range_fn(self.mission, self.t0),
                 seed=5,
+                timeout_s=self.modem_timeout_s,
                 baudrate=b["modem"],
             ),
         }

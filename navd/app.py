@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivers import ahrs, castle, gps, keller, modem
-from drivers.codec import DecodeStats
+from drivers.codec import DecodeStats, DeviceError
 from drivers.transport import SerialTransport
 from navd.config import Config
 from navd.filter import Navigator
@@ -38,6 +38,7 @@ CORRUPT_FRAMES = 3
 CORRUPT_BYTES = 64
 CORRUPT_WINDOW_S = 5.0
 SILENT_S = 3.0  # a streaming or polled device this long without a byte is said silent
+PROBE_WAIT_S = 3.0  # a device asked who it is answers within this
 _NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
 MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
@@ -64,8 +65,11 @@ class DeviceState:
     decoder: Any = None
     records: int = 0
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=2000))
-    device_errors: int = 0  # the device answered with an error (Keller exception codes)
+    device_errors: int = 0  # the device answered with an error in place of a reading
     t_device_error: float | None = None
+    last_device_error: str = ""
+    t_probe: float | None = None  # when the device was last asked who it is
+    firmware: int | None = None  # its answer
     # (t, bad frames, skipped bytes) at each health tick: what the last seconds brought
     bad_history: deque[tuple[float, int, int]] = field(default_factory=deque)
 
@@ -107,14 +111,17 @@ class Daemon:
             "ranges": 0,
             "fused": 0,  # range decisions the filter made: every range should get one
             "no_reply": 0,
+            "refused": 0,  # ERROR, or the shell's "Command '...' not found"
             "timeouts": 0,
-            "errors": 0,
+            "errors": 0,  # ranges nobody asked for
             "skipped_busy": 0,
             "skipped_port_down": 0,
         }
         self.latest: dict[str, Any] | None = None
         self.gps_utc: dt.datetime | None = None
         self.temperature_c: float | None = None
+        # the motor controller's battery voltage, current and temperature
+        self.esc: dict[str, float] = {}
         self.events: deque[str] = deque(maxlen=20)
         self._last_watchdog = -math.inf
         m = cfg.devices.modem
@@ -178,7 +185,7 @@ class Daemon:
         state = self.devices[name]
 
         def handle(rec: object) -> None:
-            if isinstance(rec, keller.DeviceError):
+            if isinstance(rec, DeviceError):
                 self._on_device_error(state, rec)
                 return
             state.records += 1
@@ -191,6 +198,10 @@ class Daemon:
                 self.gps_utc = rec.utc
             elif isinstance(rec, keller.Temperature):
                 self.temperature_c = rec.c
+            elif isinstance(rec, ahrs.Firmware):
+                state.firmware = rec.version
+            elif isinstance(rec, castle.EscStatus):
+                self.esc[rec.name] = round(rec.value, 2)
             elif isinstance(rec, modem.ModemRange):
                 self._on_range(rec)
             elif isinstance(rec, modem.ModemReply):
@@ -198,13 +209,13 @@ class Daemon:
 
         return handle
 
-    def _on_device_error(self, state: DeviceState, rec: keller.DeviceError) -> None:
-        """An exception answer is not a reading: counted apart, and shown in health."""
+    def _on_device_error(self, state: DeviceState, rec: DeviceError) -> None:
+        """An error answer is not a reading: counted apart, and shown in health."""
         state.device_errors += 1
         state.t_device_error = self.clock()
-        if rec.code == keller.E_NOT_INITIALISED and state.transport is not None:
-            # the sensor lost power and forgot F48: initialise it again and carry on
-            state.transport.write(state.decoder.request_init())
+        state.last_device_error = rec.what
+        if rec.send and state.transport is not None:
+            state.transport.write(rec.send)  # e.g. a Keller that forgot F48 after a power blip
 
     def _on_range(self, r: modem.ModemRange) -> None:
         if self.ping_t is None:
@@ -217,9 +228,12 @@ class Daemon:
         self.feed(Range(r.t, t_ping, r.range_m, m.beacon, r.lat, r.lon, r.depth))
 
     def _on_modem_reply(self, r: modem.ModemReply) -> None:
-        # "OK" follows a range, which already closed the ping; silence or an error close it
-        if r.status in ("no_reply", "error") and self.ping_t is not None:
-            self.pings[r.status if r.status == "no_reply" else "errors"] += 1
+        # "OK" follows a range, which already closed the ping; silence or a refusal close it
+        if r.status == "refused":
+            self.pings["refused"] += 1  # counted even when no ping was waiting
+        if r.status in ("no_reply", "refused") and self.ping_t is not None:
+            if r.status == "no_reply":
+                self.pings["no_reply"] += 1
             self.vitals.ping(r.status)
             self.ping_t = None
 
@@ -251,6 +265,10 @@ class Daemon:
 
             def ahrs_open(tr: SerialTransport, rate: float = d.ahrs.rate_hz) -> None:
                 tr.write(ahrs.encode_stop())
+                # which unit is this: a single-byte 3DM-GX3-25 answers with its firmware
+                self.devices["ahrs"].t_probe = self.clock()
+                self.devices["ahrs"].firmware = None
+                tr.write(ahrs.encode_firmware_probe())
                 tr.write(ahrs.encode_sampling(rate))
                 tr.write(ahrs.encode_continuous())
 
@@ -263,7 +281,8 @@ class Daemon:
                 ("pressure", d.pressure, kd, lambda tr, kd=kd: tr.write(kd.request_init()))
             )
         if d.motor.enabled:
-            specs.append(("motor", d.motor, castle.CastleDecoder(d.motor.pole_pairs), None))
+            cd = castle.CastleDecoder(d.motor.pole_pairs, d.motor.device_id)
+            specs.append(("motor", d.motor, cd, lambda tr, cd=cd: tr.write(cd.request_clear())))
         if d.modem.enabled:
             specs.append(("modem", d.modem, modem.ModemDecoder(), None))
         for name, dev, dec, on_open in specs:
@@ -325,6 +344,10 @@ class Daemon:
             if late > dt_:
                 self.overruns += 1
                 k = math.floor(now / dt_)  # catch up: the navigator emits every missed tick
+            if "modem" in self.devices:
+                # a range whose location line never came is complete after a short wait
+                for rec in self.devices["modem"].decoder.expire(now):
+                    self._on_record("modem")(rec)
             try:
                 self._outputs(self.nav.advance(k * dt_))
             except Exception as exc:
@@ -430,6 +453,8 @@ class Daemon:
                 "reconnects": hl.reconnects if hl else 0,
                 "last_error": hl.last_error if hl else "",
                 "device_errors": st.device_errors,
+                "last_device_error": st.last_device_error,
+                "firmware": st.firmware,
                 "internal_errors": dict(hl.internal_errors) if hl else {},
             }
         lat = list(self.tick_lateness)
@@ -458,8 +483,19 @@ class Daemon:
                 degraded.append(
                     f"{n}: {devices[n]['rate_hz']:.0f} records/s, {expected:g} expected"
                 )
+            if (
+                st.t_probe is not None
+                and st.firmware is None
+                and now - st.t_probe > PROBE_WAIT_S
+                and devices[n]["connected"]
+            ):
+                degraded.append(
+                    f"{n}: no answer to the firmware probe: not a single-byte protocol unit?"
+                )
             if st.t_device_error is not None and now - st.t_device_error <= RECENT_S:
-                degraded.append(f"{n}: device error answers ({st.device_errors})")
+                degraded.append(
+                    f"{n}: device error answers ({st.device_errors}, last: {st.last_device_error})"
+                )
             hl = st.transport.health if st.transport else None
             if hl and hl.last_internal_error and now - hl.last_internal_error <= RECENT_S:
                 degraded.append(f"{n}: internal errors {hl.internal_errors}")
@@ -513,6 +549,7 @@ class Daemon:
                 "commands": dict(self.pub.commands),
             },
             "temperature_c": self.temperature_c,
+            "esc": dict(self.esc),
         }
 
     async def run(self, stop: asyncio.Event) -> None:
@@ -536,7 +573,7 @@ class Daemon:
             )
         if d.motor.enabled:
             cd = self.devices["motor"].decoder
-            tasks.append(loop.create_task(self._poller("motor", d.motor.poll_hz, cd.request_rpm)))
+            tasks.append(loop.create_task(self._poller("motor", d.motor.poll_hz, cd.request_poll)))
         if d.modem.enabled:
             tasks.append(loop.create_task(self._pinger()))
         # READY once the ports are open (or 5 s have shown which are not) and the loop ticks

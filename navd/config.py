@@ -171,8 +171,17 @@ class AhrsDevice(SerialPortConfig):
 @dataclass(frozen=True, slots=True)
 class PolledDevice(SerialPortConfig):
     poll_hz: float = _num(10.0, gt=0.0, hi=100.0)
+
+
+@dataclass(frozen=True, slots=True)
+class PressureDevice(PolledDevice):
     address: int = _num(1, lo=0, hi=255)  # Keller bus address
+
+
+@dataclass(frozen=True, slots=True)
+class MotorDevice(PolledDevice):
     pole_pairs: int = _num(1, lo=1, hi=64)  # motor pole pairs (Castle eRPM to RPM)
+    device_id: int = _num(0, lo=0, hi=127)  # Castle Serial Link device id (request byte 0x80 | id)
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,14 +192,17 @@ class ModemDevice(SerialPortConfig):
     # would flood the modem (1e-6 once gave 122,000 ATRX writes in 8 s)
     ping_interval_s: float = _num(10.0, lo=1.0, hi=3600.0)
     reply_timeout_s: float = _num(8.0, lo=0.5, hi=600.0)
+    # the modem's own wait for the remote before it prints "Response Not Received."
+    # (a modem setting, 2 to 99.5 s): navd's reply_timeout_s must outlast it
+    modem_timeout_s: float = _num(4.0, lo=2.0, hi=99.5)
 
 
 @dataclass(frozen=True, slots=True)
 class DevicesConfig:
     ahrs: AhrsDevice = field(default_factory=AhrsDevice)
     gps: SerialPortConfig = field(default_factory=SerialPortConfig)
-    pressure: PolledDevice = field(default_factory=PolledDevice)
-    motor: PolledDevice = field(default_factory=PolledDevice)
+    pressure: PressureDevice = field(default_factory=PressureDevice)
+    motor: MotorDevice = field(default_factory=MotorDevice)
     modem: ModemDevice = field(default_factory=ModemDevice)
 
 
@@ -357,6 +369,14 @@ def config_from_dict(data: Any) -> Config:
         if "0.0.0.0" in ep or "[::]" in ep:
             # commands reach the vehicle through this: it listens on a named network only
             _fail(f"zenoh.listen[{i}]", f"{ep} listens on every interface; give an address")
+    m = cfg.devices.modem
+    if m.reply_timeout_s <= m.modem_timeout_s:
+        _fail(
+            "devices.modem.reply_timeout_s",
+            f"{m.reply_timeout_s:g} s does not outlast the modem's own timeout "
+            f"(devices.modem.modem_timeout_s {m.modem_timeout_s:g} s): a ping would be "
+            "given up while the modem still waits for its reply",
+        )
     return cfg
 
 

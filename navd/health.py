@@ -37,7 +37,7 @@ class Vitals:
         self.estimates.append(t)
 
     def ping(self, outcome: str) -> None:
-        """``range``, ``no_reply``, ``timeout`` or ``error``."""
+        """``range``, ``no_reply``, ``timeout`` or ``refused``."""
         self.pings.append(outcome)
 
     def range_accepted(self, t: float) -> None:

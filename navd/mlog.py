@@ -102,9 +102,14 @@ def _parse_gps(o: dict, t: float) -> Gps:
     if isinstance(fix, bool) or not isinstance(fix, int) or fix not in (0, 1, 2):
         raise _Bad("field 'fix' must be 0, 1 or 2")
     hdop = _opt(o, "hdop")
+    quality = o.get("quality")
+    if quality is not None and (
+        isinstance(quality, bool) or not isinstance(quality, int) or not 0 <= quality <= 9
+    ):
+        raise _Bad("field 'quality' must be an integer 0 to 9")
     if fix == 0:
-        return Gps(t, None, None, None, 0, hdop)
-    return Gps(t, _num(o, "lat"), _num(o, "lon"), _opt(o, "alt"), fix, hdop)
+        return Gps(t, None, None, None, 0, hdop, quality)
+    return Gps(t, _num(o, "lat"), _num(o, "lon"), _opt(o, "alt"), fix, hdop, quality)
 
 
 def _parse_range(o: dict, t: float) -> Range:

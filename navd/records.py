@@ -59,6 +59,8 @@ class Gps:
     alt: float | None  # ellipsoidal height
     fix: int  # 0 none, 1 GPS, 2 DGPS
     hdop: float | None = None
+    # the receiver's GGA quality: 1 GPS, 2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float, 9 WAAS
+    quality: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,6 +173,7 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (Gps, "lon"): (-180.0, 180.0),
     (Gps, "alt"): (-1000.0, 10_000.0),
     (Gps, "hdop"): (0.0, 1000.0),
+    (Gps, "quality"): (0, 9),
     (Range, "m"): (0.0, 1e6),
     (TravelTime, "twtt_s"): (0.0, 1e3),
     (Range, "beacon_lat"): (-90.0, 90.0),

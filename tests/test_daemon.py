@@ -135,6 +135,10 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     assert "ranges_late" in last["filter"]
     assert all(d["connected"] for d in last["devices"].values())
     assert last["devices"]["ahrs"]["rate_hz"] == pytest.approx(20.0, rel=0.1)
+    # the devices said who they are: the AHRS its firmware, the ESC its battery
+    assert last["devices"]["ahrs"]["firmware"] == 1134
+    assert last["esc"]["battery_v"] == pytest.approx(14.8, abs=0.1)
+    assert last["degraded"] == [] or all("integrity" in p for p in last["degraded"])
 
     # position against the simulator's truth, within the filter's own 3 sigma
     truth = {round(s["t"], 1): s for s in read_jsonl(mission_dir / "truth.jsonl")}

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from drivers import keller, modem
-from drivers.keller import DeviceError, KellerDecoder
+from drivers import ahrs, castle, keller, modem
+from drivers.keller import KellerDecoder
 from drivers.transport import PortHealth
 from navd.app import Daemon, DeviceState
 from navd.config import config_from_dict
@@ -85,13 +85,23 @@ def test_keller_exception_answers_are_not_readings(tmp_path: Path) -> None:
     _navigate(d, clock, 10.0)
     handle = d._on_record("pressure")
     records = d.devices["pressure"].records
-    handle(DeviceError(clock.t, keller.F_READ_FLOAT, 3))
+    dec = d.devices["pressure"].decoder
+    dec.request(keller.CH_PRESSURE)
+    for rec in dec.feed(_keller_exception(1, 3), clock.t):
+        handle(rec)
     h = d.health()
     assert d.devices["pressure"].records == records
     assert not h["ok"] and any("device error" in p for p in h["degraded"])
     # code 32, not initialised (a power blip): initialise again, keep polling
-    handle(DeviceError(clock.t, keller.F_READ_FLOAT, keller.E_NOT_INITIALISED))
+    dec.request(keller.CH_PRESSURE)
+    for rec in dec.feed(_keller_exception(1, keller.E_NOT_INITIALISED), clock.t):
+        handle(rec)
     assert d.devices["pressure"].transport.written == [keller.encode_init(1)]  # type: ignore[union-attr]
+
+
+def _keller_exception(addr: int, code: int) -> bytes:
+    body = bytes([addr, keller.F_READ_FLOAT | 0x80, code])
+    return body + keller.crc16(body).to_bytes(2, "big")
 
 
 def test_a_modem_that_never_replies_is_not_ok(tmp_path: Path) -> None:
@@ -163,3 +173,46 @@ def test_bursts_of_corrupt_data_and_a_flood_are_said(tmp_path: Path) -> None:
     assert any(p.startswith("ahrs: ") and "records/s" in p for p in h["degraded"])
     _navigate(d, clock, 6.0)  # the burst is over, the flood too
     assert not [p for p in d.health()["degraded"] if "corrupt" in p or "records/s" in p]
+
+
+def test_an_ahrs_that_does_not_answer_the_firmware_probe_is_not_ok(tmp_path: Path) -> None:
+    """A 2.x firmware GX3 speaks MIP and says nothing to the single-byte probe."""
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+    st = d.devices["ahrs"]
+    st.t_probe = clock.t
+    _navigate(d, clock, 4.0)
+    h = d.health()
+    assert not h["ok"] and any("firmware probe" in p for p in h["degraded"])
+    d._on_record("ahrs")(ahrs.Firmware(clock.t, 1134))
+    h = d.health()
+    assert h["devices"]["ahrs"]["firmware"] == 1134
+    assert not any("firmware probe" in p for p in h["degraded"])
+
+
+def test_the_esc_battery_is_in_health_and_its_error_answer_is_not_a_speed(
+    tmp_path: Path,
+) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+    dec = castle.CastleDecoder()
+    handle = d._on_record("motor")
+    for register, answer in ((castle.REG_VOLTAGE, "0f f4 fd"), (castle.REG_SPEED, "ff ff 02")):
+        dec.request(register)
+        for rec in dec.feed(bytes.fromhex(answer), clock.t):
+            handle(rec)
+    h = d.health()
+    assert h["esc"]["battery_v"] == pytest.approx(40.0)
+    assert h["devices"]["motor"]["device_errors"] == 1
+    assert any("motor: device error" in p for p in h["degraded"])
+
+
+def test_modem_refusals_are_counted(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 5.0)
+    d.ping_t = clock.t
+    for rec in modem.ModemDecoder().feed(b"Command 'ATRX2' not found\r\n", clock.t):
+        d._on_record("modem")(rec)
+    h = d.health()
+    assert h["pings"]["refused"] == 1 and h["pings"]["last"] == ["refused"]
+    assert d.ping_t is None  # the ping is over: the next one may go

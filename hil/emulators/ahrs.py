@@ -1,4 +1,10 @@
-"""Microstrain 3DM-GX3-25: answers polls, streams Euler angles in continuous mode."""
+"""Microstrain 3DM-GX3-25: answers polls, streams Euler angles in continuous mode.
+
+As the single-byte protocol (DCP v1.14) describes the device: a command whose
+confirmation bytes are wrong is answered ``21 00 21``; 0xE9 gives the firmware
+version.  ``mip=True`` makes it a 2.x firmware unit instead, which speaks only MIP
+and answers single-byte commands with nothing.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +14,25 @@ import time
 
 from hil.emulators.base import Emulator
 
+REFUSED = bytes([0x21, 0x00, 0x21])  # wrong confirmation bytes
+
 
 def _with_sum(body: bytes) -> bytes:
     return body + struct.pack(">H", sum(body) & 0xFFFF)
 
 
 class AhrsEmulator(Emulator):
-    def __init__(self, path, seed: int = 0, baudrate: int | None = None) -> None:
+    def __init__(
+        self,
+        path,
+        seed: int = 0,
+        baudrate: int | None = None,
+        firmware: int = 1134,
+        mip: bool = False,
+    ) -> None:
         super().__init__(path, seed, baudrate)
+        self.firmware = firmware
+        self.mip = mip
         self.roll_deg = 0.0
         self.pitch_deg = 0.0
         self.yaw_deg = 0.0  # magnetic, as the device reports
@@ -38,10 +55,15 @@ class AhrsEmulator(Emulator):
         return _with_sum(body)
 
     def on_bytes(self, data: bytes) -> None:
+        if self.mip:
+            return  # a MIP unit does not know these commands
         self._rx += data
         while self._rx:
             c = self._rx[0]
-            if c == 0xCE:
+            if c == 0xE9:
+                del self._rx[0]
+                self.reply(_with_sum(bytes([0xE9]) + struct.pack(">I", self.firmware)))
+            elif c == 0xCE:
                 del self._rx[0]
                 self.reply(self.euler_frame())
             elif c == 0xC4:
@@ -52,6 +74,8 @@ class AhrsEmulator(Emulator):
                 if cmd[1:3] == b"\xc1\x29":
                     self.reply(_with_sum(bytes([0xC4, cmd[3]]) + struct.pack(">I", self._timer())))
                     self._start_stream()
+                else:
+                    self.reply(REFUSED)
             elif c == 0xFA:
                 if len(self._rx) < 3:
                     return
@@ -66,6 +90,8 @@ class AhrsEmulator(Emulator):
                     if cmd[3] == 1:
                         self.decimation = max(1, struct.unpack(">H", cmd[4:6])[0])
                     self.reply(_with_sum(bytes([0xDB]) + cmd[4:20]))
+                else:
+                    self.reply(REFUSED)
             else:
                 del self._rx[0]  # not a command the device knows: ignored
 

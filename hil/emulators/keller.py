@@ -1,4 +1,9 @@
-"""Keller PA-30X on its RS-485 bus: answers F48 and F73 addressed to it."""
+"""Keller PA-30X on its RS-485 bus: answers F48 and F73 addressed to it.
+
+``status`` is the status byte every F73 answer carries (*Communication protocol Serie
+30* v2.2, section 4.8): set bit 1 (0x02) for a P1 measuring error, bit 4 (0x10) for
+a TOB1 error.
+"""
 
 from __future__ import annotations
 
@@ -26,6 +31,7 @@ class KellerEmulator(Emulator):
         self.addr = addr
         self.pressure_bar = 1.01325
         self.temperature_c = 12.0
+        self.status = 0
         self._rx = bytearray()
 
     def on_bytes(self, data: bytes) -> None:
@@ -58,7 +64,7 @@ class KellerEmulator(Emulator):
                 body = bytes([self.addr, 73 | 0x80, 2])  # exception 2: invalid channel
                 self.reply(body + _crc(body))
                 return
-            body = bytes([self.addr, 73]) + struct.pack(">f", value) + bytes([0])
+            body = bytes([self.addr, 73]) + struct.pack(">f", value) + bytes([self.status])
         else:
             body = bytes([self.addr, fn | 0x80, 1])  # exception 1: unknown function
         self.reply(body + _crc(body), delay_s=0.005)

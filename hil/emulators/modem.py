@@ -1,5 +1,10 @@
 """Benthos ATM-903 with a UDB-9400 at the far end: AT commands, ranging with location.
 
+It prints what the ATM-900 prints (docs/protocols.md, "Benthos"): the range line
+with its round trip and relative speed, ``Response Not Received.`` after its own
+timeout, ``ERROR`` for a command it cannot run now, and its shell's
+``Command '...' not found`` for one it does not know.
+
 ``range_to(t)`` is supplied by whoever drives the emulator (the world simulator, or a
 test): given the time of the ping it returns ``(round_trip_s, range_m, lat, lon, depth)``
 of the deck box, or None when the ping is lost.  The answer is sent after the true
@@ -60,13 +65,13 @@ class ModemEmulator(Emulator):
                 return
             self._ping(int(digits))
         else:
-            self.reply(b"ERROR\r\n")
+            self.reply(f"Command '{line}' not found\r\n".encode("ascii", "replace"))
 
     def _ping(self, remote: int) -> None:
         self.busy = True
         res = self.range_to(self.now())
         if res is None:
-            self.reply(b"Response Not Received\r\n", delay_s=self.timeout_s)
+            self.reply(b"Response Not Received.\r\n", delay_s=self.timeout_s)
             self._free_after(self.timeout_s)
             return
         rtt, rng, lat, lon, depth = res
@@ -75,7 +80,10 @@ class ModemEmulator(Emulator):
             loc = f"Remote Lat: {lat:.7f} Lon: {lon:.7f} Depth: {depth or 0.0:.1f}\r\n"
             if self.corrupt_position and self.rng.random() < self.corrupt_position:
                 loc = loc.replace(".", "", 1)  # a dropped character garbles the latitude
-        text = f"Range {self.own_addr} to {remote} : {rng:.1f} m\r\n{loc}OK\r\n"
+        text = (
+            f"Range {self.own_addr} to {remote} : {rng:.1f} m  "
+            f"(Round-trip  {rtt * 1000.0:.1f} ms) speed  0.0 m/s\r\n{loc}OK\r\n"
+        )
         self.reply(text.encode("ascii"), delay_s=rtt)
         self._free_after(rtt)
 

@@ -74,6 +74,20 @@ def make_filter(cfg: Config) -> NavFilter:
     return RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
 
 
+# A real-time kinematic receiver's horizontal error (fixed, float): far below an
+# autonomous fix, whatever the configured std says
+_RTK_STD_M = {4: 0.05, 5: 0.5}
+
+
+def _gps_std(std_m: float, hdop: float | None, quality: int | None) -> float:
+    """A fix's horizontal std: the configured std at HDOP 1, grown with HDOP (the
+    range error times the geometry's dilution); an RTK fix gets its own."""
+    std = std_m * max(1.0, hdop or 1.0)
+    if quality in _RTK_STD_M:
+        std = min(std, _RTK_STD_M[quality] * max(1.0, hdop or 1.0))
+    return std
+
+
 class Navigator:
     def __init__(self, cfg: Config, keep_history: bool = False) -> None:
         nav = cfg.navigation
@@ -316,7 +330,9 @@ class Navigator:
             self._alt_sum += rec.alt
             self._alt_n += 1
         warm = rec.t - self._t_gps_streak < self.nav.gps.warmup_s
-        std = self.nav.gps.warmup_std_m if warm else self.nav.noise.gps_std_m
+        std = _gps_std(
+            self.nav.gps.warmup_std_m if warm else self.nav.noise.gps_std_m, rec.hdop, rec.quality
+        )
         lat, lon = math.radians(rec.lat), math.radians(rec.lon)
         hd = self.surface_altitude - self._depth
         if not self.filter.initialised:

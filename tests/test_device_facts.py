@@ -1,0 +1,287 @@
+"""What the published protocol documents say each device does, as golden vectors.
+
+Each test names its source.  The driver decodes the vector, and the emulator
+behaves as the device does, so the emulators cannot share a driver's mistake.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import pytest
+
+from drivers import ahrs, castle, gps, keller, modem
+from drivers.codec import DeviceError
+from hil.emulators.ahrs import AhrsEmulator
+from hil.emulators.castle import CastleEmulator
+from hil.emulators.keller import KellerEmulator
+from hil.emulators.modem import ModemEmulator
+from navd.config import ConfigError, config_from_dict
+from navd.filter.navigator import _gps_std
+from navd.records import Pressure, Rpm
+
+
+def _answers(emu, request: bytes, wait_s: float = 0.05) -> list[bytes]:
+    """What an emulator puts on the line for ``request``."""
+    sent: list[bytes] = []
+
+    async def main() -> None:
+        emu.send = sent.append
+        emu.on_bytes(request)
+        await asyncio.sleep(wait_s)
+        emu.close()
+
+    asyncio.run(main())
+    return sent
+
+
+# -- Castle Serial Link ------------------------------------------------------------------
+# Castle Creations, "Castle Serial Link Communication Protocol" v1.5;
+# dgatf/castle_telemetry (castle_telemetry.cpp) builds the same frames.
+
+
+def test_castle_request_is_five_bytes_with_the_device_byte() -> None:
+    """Device 0, register 5: ``80 05 00 00 7B``; the five bytes sum to 0 mod 256."""
+    assert castle.encode_read(5, device_id=0) == bytes.fromhex("80 05 00 00 7b")
+    assert castle.encode_read(5, device_id=3) == bytes.fromhex("83 05 00 00 78")
+    assert castle.CastleDecoder(device_id=0).request_rpm() == bytes.fromhex("80 05 00 00 7b")
+
+
+def test_castle_emulator_answers_the_real_request_only(tmp_path: Path) -> None:
+    emu = CastleEmulator(tmp_path / "esc", device_id=0)
+    emu.rpm = 1000 / 2042 * 20416.66  # raw 1000
+    assert _answers(emu, bytes.fromhex("80 05 00 00 7b")) == [bytes.fromhex("03 e8 15")]
+    # the four-byte request navd once sent is not a request: no answer
+    emu = CastleEmulator(tmp_path / "esc2", device_id=0)
+    assert _answers(emu, bytes.fromhex("05 00 00 fb")) == []
+    # another device id: not ours to answer
+    emu = CastleEmulator(tmp_path / "esc3", device_id=1)
+    assert _answers(emu, bytes.fromhex("80 05 00 00 7b")) == []
+
+
+def test_castle_five_zero_bytes_clear_a_half_request(tmp_path: Path) -> None:
+    """Five ``00`` bytes clear the command buffer: a half request left in it is dropped."""
+    emu = CastleEmulator(tmp_path / "esc")
+    emu.rpm = 1000 / 2042 * 20416.66
+    half = bytes.fromhex("80 05")  # a request cut by a reset
+    assert _answers(emu, half + castle.CLEAR + bytes.fromhex("80 05 00 00 7b")) == [
+        bytes.fromhex("03 e8 15")
+    ]
+    assert castle.CastleDecoder().request_clear() == bytes(5)
+
+
+def test_castle_ffff_is_an_error_answer_not_a_speed() -> None:
+    """``FF FF`` is the error answer; with 40 pole pairs it would read 4999 RPM."""
+    dec = castle.CastleDecoder(pole_pairs=40)
+    dec.request_rpm()
+    (rec,) = dec.feed(bytes.fromhex("ff ff 02"), 1.0)
+    assert isinstance(rec, DeviceError) and not isinstance(rec, Rpm)
+    # the next answer is matched to the next request
+    dec.request_rpm()
+    (rpm,) = dec.feed(bytes.fromhex("03 e8 15"), 2.0)
+    assert rpm.rpm == pytest.approx(1000 / 2042 * 20416.66 / 40)
+
+
+def test_castle_status_registers() -> None:
+    """Register 0 is battery volts (scale 20: raw 4084 is 40.0 V), 2 current (50), 6
+    temperature (30)."""
+    dec = castle.CastleDecoder()
+    assert dec.request(castle.REG_VOLTAGE) == bytes.fromhex("80 00 00 00 80")
+    (v,) = dec.feed(bytes.fromhex("0f f4 fd"), 1.0)
+    assert v == castle.EscStatus(1.0, "battery_v", pytest.approx(40.0))
+    assert castle.value_of(castle.REG_CURRENT, 2042) == pytest.approx(50.0)
+    assert castle.value_of(castle.REG_TEMPERATURE, 2042) == pytest.approx(30.0)
+    # polled at a low rate in place of the speed: each register every few seconds
+    d = castle.CastleDecoder()
+    asked = [d.request_poll()[1] for _ in range(30)]
+    assert asked.count(castle.REG_SPEED) == 27
+    assert {r for r in asked if r != castle.REG_SPEED} == set(castle.STATUS)
+
+
+def test_castle_emulator_status_and_unknown_register(tmp_path: Path) -> None:
+    emu = CastleEmulator(tmp_path / "esc")
+    emu.battery_v = 40.0
+    assert _answers(emu, castle.encode_read(castle.REG_VOLTAGE)) == [bytes.fromhex("0f f4 fd")]
+    emu = CastleEmulator(tmp_path / "esc2")
+    assert _answers(emu, castle.encode_read(9)) == [bytes.fromhex("ff ff 02")]
+
+
+# -- Keller Serie 30 ---------------------------------------------------------------------
+# KELLER, "Communication protocol Serie 30" v2.2, section 4.8: the F73 status byte.
+
+
+def test_keller_p1_measuring_error_is_not_a_depth() -> None:
+    """1.5 bar with status bit 1 (P1 measuring error) set."""
+    dec = keller.KellerDecoder(250)
+    dec.request(keller.CH_PRESSURE)
+    (rec,) = dec.feed(bytes.fromhex("fa 49 3f c0 00 00 02 92 e6"), 1.0)
+    assert isinstance(rec, DeviceError) and "P1" in rec.what
+    # the next reading with status 0 is a pressure again
+    dec.request(keller.CH_PRESSURE)
+    assert dec.feed(bytes.fromhex("fa 49 3f c0 00 00 00 53 67"), 2.0) == [Pressure(2.0, 1.5)]
+
+
+def test_keller_tob1_error_is_not_a_temperature() -> None:
+    """12.0 degrees C with status bit 4 (TOB1 error) set."""
+    dec = keller.KellerDecoder(250)
+    dec.request(keller.CH_TEMPERATURE)
+    (rec,) = dec.feed(bytes.fromhex("fa 49 41 40 00 00 10 55 67"), 1.0)
+    assert isinstance(rec, DeviceError) and "TOB1" in rec.what
+
+
+def test_keller_crc_high_byte_first_only() -> None:
+    """The manual's F48 example ``FA 30 04 43`` sends the CRC high byte first (DUNE's
+    Keller task too); no source has the reversed form, so it is a bad frame."""
+    dec = keller.KellerDecoder(250)
+    dec.request(keller.CH_PRESSURE)
+    good = bytes.fromhex("fa 49 3f c0 00 00 00 53 67")
+    assert dec.feed(good[:-2] + good[-2:][::-1], 1.0) == []
+    assert dec.stats.bad_checksum >= 1
+
+
+def test_keller_emulator_reports_its_status(tmp_path: Path) -> None:
+    emu = KellerEmulator(tmp_path / "k", addr=250)
+    emu.pressure_bar, emu.status = 1.5, 0x02
+    (frame,) = _answers(emu, keller.encode_read_float(250, keller.CH_PRESSURE))
+    assert frame == bytes.fromhex("fa 49 3f c0 00 00 02 92 e6")
+
+
+# -- NMEA 0183 GGA quality ---------------------------------------------------------------
+# NMEA 0183 GGA field 6, as tabulated in receiver manuals (Furuno, Epson): 0 invalid,
+# 1 GPS, 2 DGPS, 3 PPS, 4 RTK, 5 float RTK, 6 estimated, 7 manual, 8 simulator.
+
+
+def _gga(quality: int) -> bytes:
+    from hil.emulators.gps import sentence
+
+    return sentence(f"GPGGA,123519,4807.038,N,01131.000,E,{quality},08,0.9,545.4,M,46.9,M,,")
+
+
+@pytest.mark.parametrize("quality", [6, 7, 8])
+def test_gga_estimated_manual_simulated_are_not_fixes(quality: int) -> None:
+    (rec,) = gps.NmeaDecoder().feed(_gga(quality), 1.0)
+    assert rec.fix == 0 and rec.lat is None and rec.quality == quality
+
+
+@pytest.mark.parametrize("quality", [3, 4, 5])
+def test_gga_pps_and_rtk_are_fixes_and_carry_their_quality(quality: int) -> None:
+    (rec,) = gps.NmeaDecoder().feed(_gga(quality), 1.0)
+    assert rec.fix in (1, 2) and rec.lat == pytest.approx(48.1173) and rec.quality == quality
+
+
+def test_the_filter_weights_a_fix_by_quality_and_hdop() -> None:
+    assert _gps_std(3.0, 1.0, 1) == 3.0
+    assert _gps_std(3.0, 2.0, 1) == 6.0  # the same receiver, worse geometry
+    assert _gps_std(3.0, 1.0, 4) < _gps_std(3.0, 1.0, 5) < _gps_std(3.0, 1.0, 1)
+
+
+# -- Benthos ATM-900 ---------------------------------------------------------------------
+# GobySoft/goby3, src/acomms/modemdriver/benthos_atm900_driver_fsm.cpp: the Range line
+# alone is the ranging result; the shell refuses with "Command '...' not found"; no
+# reply is "Response Not Received." after the modem's own timeout (2 to 99.5 s).
+
+GOBY_RANGE = b"Range 1 to 2 : 1499.6 m  (Round-trip  1999.5 ms) speed  0.0 m/s\r\n"
+
+
+def test_a_range_does_not_wait_for_the_next_line() -> None:
+    dec = modem.ModemDecoder()
+    assert dec.feed(b"TX time 12:00:00\r\n" + GOBY_RANGE, 10.0) == []  # its location may follow
+    assert dec.expire(10.0 + modem.LOCATION_WAIT_S / 2) == []
+    (rng,) = dec.expire(10.0 + modem.LOCATION_WAIT_S)
+    assert rng == modem.ModemRange(10.0, 1499.6, 2)  # stamped with its own line
+    assert dec.stats.skipped_bytes == 0  # the TX time line is the modem's, not garbage
+
+
+def test_a_location_line_completes_the_range_without_restamping_it() -> None:
+    dec = modem.ModemDecoder()
+    dec.feed(GOBY_RANGE, 10.0)
+    (rng,) = dec.feed(b"Remote Lat: 37.0490112 Lon: -80.6670001 Depth: 3.0\r\n", 10.06)
+    assert (rng.t, rng.range_m, rng.lat, rng.lon, rng.depth) == (
+        10.0,
+        1499.6,
+        37.0490112,
+        -80.6670001,
+        3.0,
+    )
+
+
+@pytest.mark.parametrize("line", [b"ERROR", b"Command 'ATRX2' not found"])
+def test_both_refusals_are_refusals(line: bytes) -> None:
+    (reply,) = modem.ModemDecoder().feed(line + b"\r\n", 1.0)
+    assert reply == modem.ModemReply(1.0, "refused")
+
+
+def test_no_reply_with_its_full_stop() -> None:
+    (reply,) = modem.ModemDecoder().feed(b"Response Not Received.\r\n", 1.0)
+    assert reply.status == "no_reply"
+
+
+def test_modem_emulator_speaks_as_the_atm900(tmp_path: Path) -> None:
+    emu = ModemEmulator(tmp_path / "m", lambda t: (1.9995, 1499.6, None, None, None))
+    (text,) = _answers(emu, b"ATRX2\r", wait_s=2.2)
+    assert text == GOBY_RANGE + b"OK\r\n"
+    emu = ModemEmulator(tmp_path / "m2", lambda t: None, timeout_s=0.1)
+    assert _answers(emu, b"ATRX2\r", wait_s=0.3) == [b"Response Not Received.\r\n"]
+    emu = ModemEmulator(tmp_path / "m3", lambda t: None)
+    assert _answers(emu, b"ATFOO\r") == [b"Command 'ATFOO' not found\r\n"]
+
+
+def test_check_config_wants_navd_to_outlast_the_modem() -> None:
+    with pytest.raises(ConfigError, match=r"devices\.modem\.reply_timeout_s"):
+        config_from_dict({"devices": {"modem": {"reply_timeout_s": 8, "modem_timeout_s": 10}}})
+    with pytest.raises(ConfigError, match=r"devices\.modem\.modem_timeout_s"):
+        config_from_dict({"devices": {"modem": {"modem_timeout_s": 1}}})  # the modem's floor: 2 s
+    config_from_dict({"devices": {"modem": {"reply_timeout_s": 12, "modem_timeout_s": 10}}})
+
+
+# -- 3DM-GX3-25 --------------------------------------------------------------------------
+# MicroStrain, "3DM-GX3-25 Single Byte Data Communications Protocol" v1.14; LSTS DUNE,
+# Sensors/Microstrain3DMGX3 (the 0xE9 firmware probe).
+
+
+def test_gx3_refusal_is_decoded_and_counted() -> None:
+    dec = ahrs.AhrsDecoder()
+    (rec,) = dec.feed(bytes.fromhex("21 00 21"), 1.0)
+    assert isinstance(rec, DeviceError) and rec.code == 0x21
+
+
+def test_gx3_emulator_refuses_wrong_confirmation_bytes(tmp_path: Path) -> None:
+    emu = AhrsEmulator(tmp_path / "a")
+    assert _answers(emu, bytes.fromhex("c4 c1 2a ce")) == [bytes.fromhex("21 00 21")]
+
+
+def test_gx3_sampling_flags_are_orientation_and_coning_sculling() -> None:
+    frame = ahrs.encode_sampling(20.0)
+    flags = int.from_bytes(frame[6:8], "big")
+    assert flags & 0x01  # bit 0: orientation
+    assert flags & 0x02  # bit 1: coning and sculling compensation
+
+
+def test_gx3_firmware_probe(tmp_path: Path) -> None:
+    """0xE9 is answered ``E9 <u32 version> <u16 sum>``: version 1134 is 1.1.34."""
+    assert ahrs.encode_firmware_probe() == b"\xe9"
+    emu = AhrsEmulator(tmp_path / "a", firmware=1134)
+    (frame,) = _answers(emu, b"\xe9")
+    assert frame == bytes.fromhex("e9 00 00 04 6e 01 5b")
+    (rec,) = ahrs.AhrsDecoder().feed(frame, 1.0)
+    assert rec == ahrs.Firmware(1.0, 1134)
+
+
+def test_a_mip_unit_is_refused_not_streamed_from(tmp_path: Path) -> None:
+    """A 2.x firmware unit speaks MIP: its frames (here the MIP ping's ACK, ``75 65 01
+    04 04 F1 01 00 D5 6A``) are a device error, and single-byte commands get nothing."""
+    (rec,) = ahrs.AhrsDecoder().feed(bytes.fromhex("75 65 01 04 04 f1 01 00 d5 6a"), 1.0)
+    assert isinstance(rec, DeviceError) and "MIP" in rec.what
+    emu = AhrsEmulator(tmp_path / "a", mip=True)
+    assert _answers(emu, b"\xe9" + ahrs.encode_continuous()) == []
+
+
+def test_castle_one_request_open_at_a_time() -> None:
+    """Answers carry no header: after a lost answer, the next answer is the next
+    request's, never read as the register asked before (a voltage as a speed)."""
+    dec = castle.CastleDecoder()
+    dec.request(castle.REG_VOLTAGE)  # never answered
+    dec.request_rpm()
+    (rec,) = dec.feed(bytes.fromhex("03 e8 15"), 1.0)
+    assert isinstance(rec, Rpm) and dec.stats.reasons["unanswered"] == 1
