@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from drivers.codec import DecodeStats
 
 _RANGE = re.compile(rb"range\s*(?:\d+\s*to\s*(\d+))?\s*[:=]\s*([0-9]+(?:\.[0-9]*)?)\s*m", re.I)
+_ROUND_TRIP = re.compile(rb"round-?trip\s*[:=]?\s*([0-9]+(?:\.[0-9]*)?)\s*ms", re.I)
+_SPEED = re.compile(rb"speed\s*[:=]?\s*([-+]?[0-9]+(?:\.[0-9]*)?)\s*m/s", re.I)
 _LOC = re.compile(
     rb"lat\w*\s*[:=]\s*(-?[0-9.]+)\s*,?\s*lon\w*\s*[:=]\s*(-?[0-9.]+)"
     rb"(?:\s*,?\s*depth\s*[:=]\s*(-?[0-9.]+))?",
@@ -63,6 +65,8 @@ class ModemRange:
     lat: float | None = None
     lon: float | None = None
     depth: float | None = None
+    twtt_s: float | None = None  # the round trip the modem measured
+    speed_mps: float | None = None  # its relative speed to the remote
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,21 +137,26 @@ class ModemDecoder:
                 self.stats.skip(len(line), "bad_range")
                 return out
             remote = int(m.group(1)) if m.group(1) else None
-            self._range = ModemRange(t, rng, remote)
+            rt, sp = _ROUND_TRIP.search(line), _SPEED.search(line)
+            rtt_ms = _num(rt.group(1), 0.0, 1e6) if rt else None
+            self._range = ModemRange(
+                t,
+                rng,
+                remote,
+                twtt_s=None if rtt_ms is None else rtt_ms / 1000.0,
+                speed_mps=_num(sp.group(1), -100.0, 100.0) if sp else None,
+            )
             return out
         m = _LOC.search(line)
         if m:
             if self._range is None:
                 self.stats.skip(len(line), "location_without_range")
                 return []
-            r = self._range
-            self._range = ModemRange(
-                r.t,
-                r.range_m,
-                r.remote,
-                _num(m.group(1), -90.0, 90.0),
-                _num(m.group(2), -180.0, 180.0),
-                _num(m.group(3), -100.0, 11000.0),
+            self._range = replace(
+                self._range,
+                lat=_num(m.group(1), -90.0, 90.0),
+                lon=_num(m.group(2), -180.0, 180.0),
+                depth=_num(m.group(3), -100.0, 11000.0),
             )
             return self._flush()
         if line.upper() == b"OK":

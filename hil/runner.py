@@ -120,6 +120,7 @@ class Bench:
         # the emulated devices are set up as the config says the real ones are
         self.modem_timeout_s = parsed.devices.modem.modem_timeout_s
         self.motor_id = parsed.devices.motor.device_id
+        self.modem_mps = parsed.navigation.sound_speed.modem_mps
         (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
         with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
             for s in self.mission.truth:
@@ -149,6 +150,7 @@ class Bench:
                 modem_range_fn(self.mission, self.t0),
                 seed=5,
                 timeout_s=self.modem_timeout_s,
+                sound_speed_mps=self.modem_mps,
                 baudrate=b["modem"],
             ),
         }

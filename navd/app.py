@@ -225,7 +225,9 @@ class Daemon:
         self.pings["ranges"] += 1
         self.vitals.ping("range")
         t_ping, self.ping_t = self.ping_t, None
-        self.feed(Range(r.t, t_ping, r.range_m, m.beacon, r.lat, r.lon, r.depth))
+        self.feed(
+            Range(r.t, t_ping, r.range_m, m.beacon, r.lat, r.lon, r.depth, r.twtt_s, r.speed_mps)
+        )
 
     def _on_modem_reply(self, r: modem.ModemReply) -> None:
         # "OK" follows a range, which already closed the ping; silence or a refusal close it

@@ -113,7 +113,15 @@ def _parse_gps(o: dict, t: float) -> Gps:
 
 
 def _parse_range(o: dict, t: float) -> Range:
-    return Range(t, _num(o, "t_ping"), _num(o, "m"), _str(o, "beacon"), *_beacon_fields(o))
+    return Range(
+        t,
+        _num(o, "t_ping"),
+        _num(o, "m"),
+        _str(o, "beacon"),
+        *_beacon_fields(o),
+        _opt(o, "twtt_s"),
+        _opt(o, "speed_mps"),
+    )
 
 
 def _parse_tt(o: dict, t: float) -> TravelTime:

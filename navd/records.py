@@ -72,6 +72,10 @@ class Range:
     beacon_lat: float | None = None
     beacon_lon: float | None = None
     beacon_depth: float | None = None
+    # the round trip the modem measured (its range is this times its sound speed over
+    # two): when present the filter ranges from it with the water's sound speed
+    twtt_s: float | None = None
+    speed_mps: float | None = None  # the modem's relative speed: a diagnostic, not fused
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,6 +179,8 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (Gps, "hdop"): (0.0, 1000.0),
     (Gps, "quality"): (0, 9),
     (Range, "m"): (0.0, 1e6),
+    (Range, "twtt_s"): (0.0, 1e3),
+    (Range, "speed_mps"): (-100.0, 100.0),
     (TravelTime, "twtt_s"): (0.0, 1e3),
     (Range, "beacon_lat"): (-90.0, 90.0),
     (Range, "beacon_lon"): (-180.0, 180.0),

@@ -85,7 +85,7 @@ def test_modem_golden() -> None:
     assert modem.encode_range(2) == b"ATRX2\r"
     d = modem.ModemDecoder()
     rng, ok = d.feed(MODEM_ATRX, 12.5)
-    assert rng == modem.ModemRange(12.5, 153.4, 2, 37.0490112, -80.6670001, 3.0)
+    assert rng == modem.ModemRange(12.5, 153.4, 2, 37.0490112, -80.6670001, 3.0, 0.2045, 0.0)
     assert ok == modem.ModemReply(12.5, "ok")
     (lost,) = d.feed(b"Response Not Received.\r\n", 20.0)
     assert lost.status == "no_reply"

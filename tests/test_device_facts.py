@@ -189,7 +189,8 @@ def test_a_range_does_not_wait_for_the_next_line() -> None:
     assert dec.feed(b"TX time 12:00:00\r\n" + GOBY_RANGE, 10.0) == []  # its location may follow
     assert dec.expire(10.0 + modem.LOCATION_WAIT_S / 2) == []
     (rng,) = dec.expire(10.0 + modem.LOCATION_WAIT_S)
-    assert rng == modem.ModemRange(10.0, 1499.6, 2)  # stamped with its own line
+    # stamped with its own line; the round trip and relative speed read from it
+    assert rng == modem.ModemRange(10.0, 1499.6, 2, twtt_s=1.9995, speed_mps=0.0)
     assert dec.stats.skipped_bytes == 0  # the TX time line is the modem's, not garbage
 
 
@@ -285,3 +286,21 @@ def test_castle_one_request_open_at_a_time() -> None:
     dec.request_rpm()
     (rec,) = dec.feed(bytes.fromhex("03 e8 15"), 1.0)
     assert isinstance(rec, Rpm) and dec.stats.reasons["unanswered"] == 1
+
+
+def test_the_filter_ranges_from_the_modems_round_trip() -> None:
+    """The round trip does not depend on the modem's sound-speed setting: a modem set to
+    1400 m/s prints a range 7 % short, and its round trip still gives the true range."""
+    from navd.filter import Navigator
+    from navd.records import Attitude, Depth, Gps, Range
+
+    cfg = config_from_dict({"navigation": {"sound_speed": {"model": "fixed", "fixed_mps": 1500.0}}})
+    nav = Navigator(cfg)
+    nav.feed(Depth(0.0, 0.0))
+    nav.feed(Attitude(0.0, 0.0, 0.0, 0.0))
+    nav.feed(Gps(0.0, 37.0, -80.0, 0.0, 1))
+    true_m = 300.0
+    twtt = 2 * true_m / 1500.0
+    outs = nav.feed(Range(1.0, 0.8, 1400.0 * twtt / 2, "udb", 37.0, -79.99, 0.0, twtt))
+    (d,) = [o for o in outs if o.get("type") == "range"]
+    assert d["range_m"] == pytest.approx(true_m)

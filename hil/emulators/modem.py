@@ -30,8 +30,10 @@ class ModemEmulator(Emulator):
         seed: int = 0,
         timeout_s: float = 4.0,
         baudrate: int | None = None,
+        sound_speed_mps: float = 1500.0,
     ) -> None:
         super().__init__(path, seed, baudrate)
+        self.sound_speed_mps = sound_speed_mps  # the modem's setting: range = c * round trip / 2
         self.range_to = range_to
         self.own_addr = own_addr
         self.timeout_s = timeout_s
@@ -80,9 +82,12 @@ class ModemEmulator(Emulator):
             loc = f"Remote Lat: {lat:.7f} Lon: {lon:.7f} Depth: {depth or 0.0:.1f}\r\n"
             if self.corrupt_position and self.rng.random() < self.corrupt_position:
                 loc = loc.replace(".", "", 1)  # a dropped character garbles the latitude
+        # the round trip it prints is the one its range comes from (the answer itself
+        # arrives after the physical round trip, ``rtt``)
+        measured_ms = 2000.0 * rng / self.sound_speed_mps
         text = (
             f"Range {self.own_addr} to {remote} : {rng:.1f} m  "
-            f"(Round-trip  {rtt * 1000.0:.1f} ms) speed  0.0 m/s\r\n{loc}OK\r\n"
+            f"(Round-trip  {measured_ms:.1f} ms) speed  0.0 m/s\r\n{loc}OK\r\n"
         )
         self.reply(text.encode("ascii"), delay_s=rtt)
         self._free_after(rtt)

@@ -372,6 +372,10 @@ class Navigator:
             rng = travel_time_to_range(rec.twtt_s, c_water, fix.turnaround_s)
         elif self.thesis:
             rng = rec.m  # the thesis uses the modem's range as reported
+        elif rec.twtt_s is not None:
+            # the modem's own round trip (its turnaround already taken out): right
+            # whatever sound speed the modem was set to
+            rng = travel_time_to_range(rec.twtt_s, c_water, 0.0)
         else:
             rng = rescale_range(rec.m, self.sound.modem_mps, c_water)
         out["range_m"] = rng
