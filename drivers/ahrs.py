@@ -16,6 +16,10 @@ From the 3DM-GX3-25 Single Byte Data Communications Protocol (docs/protocols.md)
 * 0xE9 firmware version: answered ``0xE9 <version u32> checksum`` (7 bytes; LSTS DUNE
   probes the device with it).  navd sends it on every open.
 * ``21 00 21``: the device refuses a command whose confirmation bytes are wrong.
+* 0xE5 read an EEPROM word: ``E5 00 addr_hi addr_lo``, answered ``E5 value(u16)
+  checksum`` (5 bytes).  The hard-iron offsets are three float32 from 0x0400 (six
+  words; LSTS DUNE reads and writes them there).
+* ``FE 9E 3A`` soft reset: no answer; the device restarts with its stored settings.
 
 Units with 2.x firmware speak MIP instead (frames ``75 65 <set> <length> ...
 <Fletcher-16>``): they are recognised, counted, and refused as a device error.
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections import deque
 from dataclasses import dataclass
 
 from drivers.codec import DeviceError, FrameDecoder
@@ -36,6 +41,9 @@ CMD_EULER = 0xCE
 CMD_CONTINUOUS = 0xC4
 CMD_SAMPLING = 0xDB
 CMD_FIRMWARE = 0xE9
+CMD_READ_EEPROM = 0xE5
+#: the hard-iron offsets: three big-endian float32 from this EEPROM address, in 6 words
+HARD_IRON_ADDR = 0x0400
 REFUSED = bytes([0x21, 0x00, 0x21])
 MIP_SYNC = bytes([0x75, 0x65])
 TIMER_HZ = 62_500.0
@@ -43,7 +51,13 @@ TIMER_HZ = 62_500.0
 _SAMPLING_FLAGS = 0x0003
 # what the device sends, by its first byte: the 0xCE Euler record and the replies to
 # the commands navd sends (set continuous mode, write sampling settings, firmware)
-_FRAME_LENGTHS = {CMD_EULER: 19, CMD_CONTINUOUS: 8, CMD_SAMPLING: 19, CMD_FIRMWARE: 7}
+_FRAME_LENGTHS = {
+    CMD_EULER: 19,
+    CMD_CONTINUOUS: 8,
+    CMD_SAMPLING: 19,
+    CMD_FIRMWARE: 7,
+    CMD_READ_EEPROM: 5,
+}
 
 
 def checksum(data: bytes) -> int:
@@ -70,6 +84,21 @@ def encode_sampling(rate_hz: float, function: int = 1) -> bytes:
 
 def encode_firmware_probe() -> bytes:
     return bytes([CMD_FIRMWARE])
+
+
+def encode_soft_reset() -> bytes:
+    return bytes([0xFE, 0x9E, 0x3A])
+
+
+def encode_read_eeprom(address: int) -> bytes:
+    return bytes([CMD_READ_EEPROM, 0x00]) + address.to_bytes(2, "big")
+
+
+def hard_iron(words: list[int]) -> tuple[float, float, float]:
+    """The three hard-iron offsets from the six EEPROM words that hold them."""
+    raw = b"".join(w.to_bytes(2, "big") for w in words)
+    x, y, z = struct.unpack(">fff", raw)
+    return x, y, z
 
 
 def fletcher16(data: bytes) -> bytes:
@@ -102,6 +131,13 @@ class Euler:
 
 
 @dataclass(frozen=True, slots=True)
+class EepromWord:
+    t: float
+    address: int
+    value: int
+
+
+@dataclass(frozen=True, slots=True)
 class Firmware:
     t: float
     version: int  # e.g. 1134 for 1.1.34
@@ -111,6 +147,18 @@ MIP_ERROR = 0x7565  # the DeviceError code of a MIP frame
 
 
 class AhrsDecoder(FrameDecoder):
+    def __init__(self) -> None:
+        super().__init__()
+        # EEPROM answers carry no address: matched to the reads in order
+        self._eeprom: deque[int] = deque(maxlen=16)
+
+    def request_eeprom(self, address: int) -> bytes:
+        self._eeprom.append(address)
+        return encode_read_eeprom(address)
+
+    def request_hard_iron(self) -> bytes:
+        return b"".join(self.request_eeprom(HARD_IRON_ADDR + 2 * i) for i in range(6))
+
     def _frame_length(self, buf: bytearray) -> int | None:
         if buf[0] == REFUSED[0]:
             return len(REFUSED) if buf[1:2] in (b"", REFUSED[1:2]) else None
@@ -138,6 +186,11 @@ class AhrsDecoder(FrameDecoder):
             )
         if f[0] == CMD_FIRMWARE:
             return Firmware(t, int.from_bytes(f[1:5], "big"))
+        if f[0] == CMD_READ_EEPROM:
+            if not self._eeprom:
+                self.stats.bad("unsolicited_eeprom")
+                return None
+            return EepromWord(t, self._eeprom.popleft(), int.from_bytes(f[1:3], "big"))
         if f[0] == CMD_EULER:
             roll, pitch, yaw, timer = struct.unpack(">fffI", f[1:17])
             if not all(math.isfinite(v) and abs(v) <= 2 * math.pi for v in (roll, pitch, yaw)):

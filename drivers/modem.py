@@ -41,9 +41,12 @@ _LOC = re.compile(
 )
 _NO_REPLY = re.compile(rb"response not received|timeout|timed out", re.I)
 _REFUSED = re.compile(rb"^error\b|^command\s+'.*'\s+not\s+found", re.I)
+_ESCAPE_ANSWER = re.compile(rb"^command\s+'\+\+\+'\s+not\s+found", re.I)
+_PROMPT = re.compile(rb"^user:\s*\d*\s*(\w*)\s*>", re.I)
+_CONNECT = re.compile(rb"^connect", re.I)
 # lines the modem prints that carry nothing for ranging: the transmit report before a
-# range, received data packets, mode changes, the shell prompt
-_IGNORED = re.compile(rb"^(tx time|data\(|source\s*:|crc\s*:|<eop>|connect|user:|at|>)", re.I)
+# range, received data packets, the echo of a command
+_IGNORED = re.compile(rb"^(tx time|data\(|source\s*:|crc\s*:|<eop>|at|>)", re.I)
 _MAX_LINE = 200
 # the location line follows its range line at once (about 55 bytes: 60 ms at 9600 baud)
 LOCATION_WAIT_S = 0.5
@@ -67,6 +70,16 @@ class ModemRange:
     depth: float | None = None
     twtt_s: float | None = None  # the round trip the modem measured
     speed_mps: float | None = None  # its relative speed to the remote
+
+
+@dataclass(frozen=True, slots=True)
+class ModemMode:
+    """What the modem said of its mode: ``command`` (its shell prompt, or ``+++``
+    refused because it is already there), ``online`` (``CONNECT``: data mode, where
+    commands are data) or ``lowpower`` (a ``Lowpower`` prompt)."""
+
+    t: float
+    mode: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,6 +116,12 @@ class ModemDecoder:
                 (p for p in (self._buf.find(b"\r"), self._buf.find(b"\n")) if p >= 0), default=-1
             )
             if i < 0:
+                if _PROMPT.match(bytes(self._buf).strip()) and self._buf.rstrip().endswith(b">"):
+                    # the shell's prompt waits for input on its own line: no CR LF after it
+                    line = bytes(self._buf).strip()
+                    self._buf.clear()
+                    out.extend(self._line(line, t))
+                    break
                 if len(self._buf) > _MAX_LINE:
                     self.stats.skip(len(self._buf), "too_long")
                     self.stats.bad_frame += 1
@@ -161,6 +180,14 @@ class ModemDecoder:
             return self._flush()
         if line.upper() == b"OK":
             return [*self._flush(), ModemReply(t, "ok")]
+        if _ESCAPE_ANSWER.search(line):
+            return [*self._flush(), ModemMode(t, "command")]
+        m = _PROMPT.search(line)
+        if m:
+            low = m.group(1).lower().startswith(b"lowpower")
+            return [*self._flush(), ModemMode(t, "lowpower" if low else "command")]
+        if _CONNECT.search(line):
+            return [*self._flush(), ModemMode(t, "online")]
         if _REFUSED.search(line):
             return [*self._flush(), ModemReply(t, "refused")]
         if _NO_REPLY.search(line):
@@ -169,3 +196,83 @@ class ModemDecoder:
         if not _IGNORED.search(line):
             self.stats.skip(len(line), "unrecognised")
         return out
+
+
+#: silence on the line before ``+++`` (the modem wants 1 s; Goby's driver waits 1.3 s)
+GUARD_S = 1.3
+#: an escape or an ``AT`` unanswered this long is tried again
+ANSWER_S = 3.0
+
+
+class ModemSession:
+    """Keeps the modem in command mode, sans-I/O: told what the modem said, asked what
+    to send.
+
+    After power-up or a ``CONNECT`` the ATM-900 is online, and everything sent to it
+    is data for the acoustic link: ``ATRX`` would never be answered.  So after every
+    open of the port, every ``CONNECT`` or ``Lowpower`` prompt, and every ping the
+    modem never answered at all, the session escapes (``+++`` after ``GUARD_S`` of
+    silence) and checks the shell with ``AT`` -> ``OK``.  Pings go only while
+    ``ready``.
+    """
+
+    def __init__(self) -> None:
+        self.mode = "unknown"  # what the modem last said: command, online, lowpower
+        self.escapes = 0
+        self._step = "escape"  # escape, escaping, check, checking, ready
+        self._t_tx = -math.inf  # our last write: the guard is silence after it
+        self._t_step = -math.inf
+        self.t_unready: float | None = None  # since when pings cannot go (None: ready)
+
+    @property
+    def ready(self) -> bool:
+        return self._step == "ready"
+
+    def opened(self, t: float) -> None:
+        self.mode = "unknown"
+        self._escape(t)
+        self._t_tx = t
+
+    def wrote(self, t: float) -> None:
+        self._t_tx = t
+
+    def lost(self, t: float) -> None:
+        """A command the modem never answered, not even with ``Response Not Received.``."""
+        self.mode = "unknown"
+        self._escape(t)
+
+    def seen(self, rec: ModemMode | ModemReply) -> None:
+        if isinstance(rec, ModemMode):
+            self.mode = rec.mode
+            if rec.mode != "command":
+                self._escape(rec.t)
+            elif self._step in ("escape", "escaping"):
+                self._step = "check"
+        elif rec.status == "ok" and self._step == "checking":
+            self.mode = "command"
+            self._step = "ready"
+            self.t_unready = None
+
+    def _escape(self, t: float) -> None:
+        if self._step == "ready" or self.t_unready is None:
+            self.t_unready = t
+        self._step = "escape"
+
+    def poll(self, t: float) -> bytes:
+        """What to send now (often nothing)."""
+        if self._step == "escape" and t - self._t_tx >= GUARD_S:
+            self._step, self._t_step = "escaping", t
+            self.escapes += 1
+            return self._sent(t, b"+++\r")
+        if self._step == "escaping" and t - self._t_step >= ANSWER_S:
+            self._step = "check"  # no prompt came: it may be in command mode already
+        if self._step == "check":
+            self._step, self._t_step = "checking", t
+            return self._sent(t, b"AT\r")
+        if self._step == "checking" and t - self._t_step >= ANSWER_S:
+            self._step = "escape"  # AT unanswered: online, or asleep
+        return b""
+
+    def _sent(self, t: float, data: bytes) -> bytes:
+        self._t_tx = t
+        return data

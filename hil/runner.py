@@ -50,6 +50,8 @@ _ACTIONS = (
     "unstall",
     "gps_off",
     "gps_on",
+    "online",  # the modem falls into online (data) mode, as after a CONNECT
+    "power_blip",  # the pressure sensor loses power and forgets its F48
     "flood",
     *_RATE_ACTIONS,
 )
@@ -72,6 +74,10 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
             raise ConfigError(f"{where}.device: expected one of {', '.join(_DEVICES)}")
         if f.get("action") not in _ACTIONS:
             raise ConfigError(f"{where}.action: expected one of {', '.join(_ACTIONS)}")
+        if f["action"] == "online" and f["device"] != "modem":
+            raise ConfigError(f"{where}.action: online is a modem fault")
+        if f["action"] == "power_blip" and f["device"] != "pressure":
+            raise ConfigError(f"{where}.action: power_blip is a pressure sensor fault")
         v = f.get("value", 0.0)
         if f["action"] == "flood" and (
             isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 1000
@@ -209,6 +215,10 @@ class Bench:
             e.faults.stalled = True
         elif action == "unstall":
             e.faults.stalled = False
+        elif action == "online":
+            e.go_online()
+        elif action == "power_blip":
+            e.power_blip()
         elif action == "gps_off":
             return True
         elif action == "gps_on":

@@ -39,6 +39,8 @@ CORRUPT_BYTES = 64
 CORRUPT_WINDOW_S = 5.0
 SILENT_S = 3.0  # a streaming or polled device this long without a byte is said silent
 PROBE_WAIT_S = 3.0  # a device asked who it is answers within this
+AHRS_RESET_S = 10.0  # an open AHRS silent this long is soft-reset (at most this often)
+AHRS_RESET_WAIT_S = 1.0  # from the soft reset to setting it up again
 _NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
 MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
@@ -69,7 +71,11 @@ class DeviceState:
     t_device_error: float | None = None
     last_device_error: str = ""
     t_probe: float | None = None  # when the device was last asked who it is
-    firmware: int | None = None  # its answer
+    # what the device said of itself (firmware, serial number, calibration): in health
+    info: dict[str, Any] = field(default_factory=dict)
+    eeprom: dict[int, int] = field(default_factory=dict)
+    t_reset: float = -math.inf  # the last soft reset navd sent (the AHRS)
+    resets: int = 0
     # (t, bad frames, skipped bytes) at each health tick: what the last seconds brought
     bad_history: deque[tuple[float, int, int]] = field(default_factory=deque)
 
@@ -106,6 +112,7 @@ class Daemon:
         self.overruns = 0
         self.ticks = 0
         self.ping_t: float | None = None
+        self.modem_session = modem.ModemSession()
         self.pings = {
             "sent": 0,
             "ranges": 0,
@@ -115,6 +122,7 @@ class Daemon:
             "timeouts": 0,
             "errors": 0,  # ranges nobody asked for
             "skipped_busy": 0,
+            "skipped_not_in_command_mode": 0,
             "skipped_port_down": 0,
         }
         self.latest: dict[str, Any] | None = None
@@ -199,15 +207,31 @@ class Daemon:
             elif isinstance(rec, keller.Temperature):
                 self.temperature_c = rec.c
             elif isinstance(rec, ahrs.Firmware):
-                state.firmware = rec.version
+                state.info["firmware"] = rec.version
+            elif isinstance(rec, ahrs.EepromWord):
+                self._on_eeprom(state, rec)
+            elif isinstance(rec, keller.SerialNumber):
+                if state.info.get("serial_number") != rec.number:
+                    log.info("%s: serial number %d", name, rec.number)
+                state.info["serial_number"] = rec.number
             elif isinstance(rec, castle.EscStatus):
                 self.esc[rec.name] = round(rec.value, 2)
             elif isinstance(rec, modem.ModemRange):
                 self._on_range(rec)
             elif isinstance(rec, modem.ModemReply):
+                self.modem_session.seen(rec)
                 self._on_modem_reply(rec)
+            elif isinstance(rec, modem.ModemMode):
+                self.modem_session.seen(rec)
 
         return handle
+
+    def _on_eeprom(self, state: DeviceState, rec: ahrs.EepromWord) -> None:
+        state.eeprom[rec.address] = rec.value
+        words = [state.eeprom.get(ahrs.HARD_IRON_ADDR + 2 * i) for i in range(6)]
+        if all(w is not None for w in words):
+            offsets = ahrs.hard_iron([w for w in words if w is not None])
+            state.info["hard_iron"] = [round(x, 6) if math.isfinite(x) else None for x in offsets]
 
     def _on_device_error(self, state: DeviceState, rec: DeviceError) -> None:
         """An error answer is not a reading: counted apart, and shown in health."""
@@ -264,29 +288,41 @@ class Daemon:
         d = self.cfg.devices
         specs: list[tuple[str, Any, Any, Callable[[SerialTransport], None] | None]] = []
         if d.ahrs.enabled:
+            ad = ahrs.AhrsDecoder()
 
             def ahrs_open(tr: SerialTransport, rate: float = d.ahrs.rate_hz) -> None:
                 tr.write(ahrs.encode_stop())
-                # which unit is this: a single-byte 3DM-GX3-25 answers with its firmware
-                self.devices["ahrs"].t_probe = self.clock()
-                self.devices["ahrs"].firmware = None
+                # which unit is this: a single-byte 3DM-GX3-25 answers with its firmware;
+                # was its compass ever calibrated: its hard-iron offsets
+                st = self.devices["ahrs"]
+                st.t_probe = self.clock()
+                st.info.clear()
+                st.eeprom.clear()
                 tr.write(ahrs.encode_firmware_probe())
+                tr.write(ad.request_hard_iron())
                 tr.write(ahrs.encode_sampling(rate))
                 tr.write(ahrs.encode_continuous())
 
-            specs.append(("ahrs", d.ahrs, ahrs.AhrsDecoder(), ahrs_open))
+            specs.append(("ahrs", d.ahrs, ad, ahrs_open))
         if d.gps.enabled:
             specs.append(("gps", d.gps, gps.NmeaDecoder(), None))
         if d.pressure.enabled:
-            kd = keller.KellerDecoder(d.pressure.address)
-            specs.append(
-                ("pressure", d.pressure, kd, lambda tr, kd=kd: tr.write(kd.request_init()))
-            )
+            kd = keller.KellerDecoder(d.pressure.address, d.pressure.local_echo)
+
+            def keller_open(tr: SerialTransport, kd: keller.KellerDecoder = kd) -> None:
+                tr.write(kd.request_init())
+                tr.write(kd.request_serial())  # which sensor: in health and the journal
+
+            specs.append(("pressure", d.pressure, kd, keller_open))
         if d.motor.enabled:
             cd = castle.CastleDecoder(d.motor.pole_pairs, d.motor.device_id)
             specs.append(("motor", d.motor, cd, lambda tr, cd=cd: tr.write(cd.request_clear())))
         if d.modem.enabled:
-            specs.append(("modem", d.modem, modem.ModemDecoder(), None))
+
+            def modem_open(tr: SerialTransport) -> None:
+                self.modem_session.opened(self.clock())
+
+            specs.append(("modem", d.modem, modem.ModemDecoder(), modem_open))
         for name, dev, dec, on_open in specs:
             self.devices[name] = DeviceState(name, decoder=dec)
             tr = SerialTransport(
@@ -319,18 +355,39 @@ class Daemon:
                 if now - self.ping_t < m.reply_timeout_s:
                     self.pings["skipped_busy"] += 1
                     continue
-                self.pings["timeouts"] += 1  # the modem never closed the last ping
-                self.vitals.ping("timeout")
-                self.ping_t = None
+                self._ping_lost()
             tr = self.devices["modem"].transport
             if tr is None or not tr.health.connected:
                 self.pings["skipped_port_down"] += 1
                 continue
+            if not self.modem_session.ready:
+                self.pings["skipped_not_in_command_mode"] += 1
+                continue
             self.ping_t = self.clock()
             if tr.write(modem.encode_range(m.remote_address)):
                 self.pings["sent"] += 1
+                self.modem_session.wrote(self.ping_t)
             else:
                 self.ping_t = None
+
+    def _ping_lost(self) -> None:
+        """The modem never closed the last ping, not even with "Response Not Received.":
+        it is not listening to commands (online, asleep), so it is brought back."""
+        self.pings["timeouts"] += 1
+        self.vitals.ping("timeout")
+        self.ping_t = None
+        self.modem_session.lost(self.clock())
+
+    async def _modem_keeper(self) -> None:
+        """Bring the modem into command mode and keep it there (drivers.modem.ModemSession)."""
+        while True:
+            await asyncio.sleep(0.1)
+            tr = self.devices["modem"].transport
+            if tr is None or not tr.health.connected:
+                continue
+            data = self.modem_session.poll(self.clock())
+            if data:
+                tr.write(data)
 
     async def _ticker(self) -> None:
         dt_ = self.dt
@@ -407,13 +464,29 @@ class Daemon:
             await asyncio.sleep(1.0)
             m = self.cfg.devices.modem
             if self.ping_t is not None and self.clock() - self.ping_t > m.reply_timeout_s:
-                self.pings["timeouts"] += 1
-                self.vitals.ping("timeout")
-                self.ping_t = None
+                self._ping_lost()
+            self._recover_ahrs()
             h = self.health()
             self.rlog.output({"type": "health", **h})
             if self.pub is not None:
                 self.pub.put("health", h)
+
+    def _recover_ahrs(self) -> None:
+        """An AHRS whose port is open but which has said nothing for ``AHRS_RESET_S`` is
+        soft-reset and set up again (as after an open): a unit that lost its settings
+        in a brown-out streams nothing until told again."""
+        st = self.devices.get("ahrs")
+        tr = st.transport if st else None
+        if st is None or tr is None or not tr.health.connected or tr.on_open is None:
+            return
+        now = self.clock()
+        last = max(tr.health.last_rx or -math.inf, st.t_probe or -math.inf, st.t_reset)
+        if now - last < AHRS_RESET_S:
+            return
+        st.t_reset = now
+        st.resets += 1
+        tr.write(ahrs.encode_soft_reset())
+        asyncio.get_running_loop().call_later(AHRS_RESET_WAIT_S, tr.on_open, tr)
 
     def _recent_bad(self, st: DeviceState, now: float) -> tuple[int, int]:
         """Bad frames (checksum or content) and skipped bytes in the last ``CORRUPT_WINDOW_S``."""
@@ -455,8 +528,9 @@ class Daemon:
                 "reconnects": hl.reconnects if hl else 0,
                 "last_error": hl.last_error if hl else "",
                 "device_errors": st.device_errors,
+                "resets": st.resets,
                 "last_device_error": st.last_device_error,
-                "firmware": st.firmware,
+                **st.info,
                 "internal_errors": dict(hl.internal_errors) if hl else {},
             }
         lat = list(self.tick_lateness)
@@ -487,7 +561,7 @@ class Daemon:
                 )
             if (
                 st.t_probe is not None
-                and st.firmware is None
+                and "firmware" not in st.info
                 and now - st.t_probe > PROBE_WAIT_S
                 and devices[n]["connected"]
             ):
@@ -503,6 +577,12 @@ class Daemon:
                 degraded.append(f"{n}: internal errors {hl.internal_errors}")
         if self._t_internal_error is not None and now - self._t_internal_error <= RECENT_S:
             degraded.append(f"internal errors {self.internal_errors}")
+        ms = self.modem_session
+        if "modem" in self.devices and ms.t_unready is not None and now - ms.t_unready > 10.0:
+            degraded.append(
+                f"modem: not in command mode for {now - ms.t_unready:.0f} s "
+                f"(last said: {ms.mode}, {ms.escapes} escapes)"
+            )
         if self.rlog.degraded and self.rlog.errors:
             degraded.append("log")
         if self.publisher_factory is not None and self.pub is None:
@@ -520,6 +600,11 @@ class Daemon:
             else round(now - self.vitals.t_range_accepted, 3),
             "devices": devices,
             "pings": {**self.pings, "last": list(self.vitals.pings)},
+            "modem": {
+                "mode": self.modem_session.mode,
+                "ready": self.modem_session.ready,
+                "escapes": self.modem_session.escapes,
+            },
             "filter": dict(self.nav.counters),
             "ticks": self.ticks,
             "tick_overruns": self.overruns,
@@ -577,6 +662,7 @@ class Daemon:
             cd = self.devices["motor"].decoder
             tasks.append(loop.create_task(self._poller("motor", d.motor.poll_hz, cd.request_poll)))
         if d.modem.enabled:
+            tasks.append(loop.create_task(self._modem_keeper()))
             tasks.append(loop.create_task(self._pinger()))
         # READY once the ports are open (or 5 s have shown which are not) and the loop ticks
         t_end = self.clock() + 5.0

@@ -176,6 +176,7 @@ class PolledDevice(SerialPortConfig):
 @dataclass(frozen=True, slots=True)
 class PressureDevice(PolledDevice):
     address: int = _num(1, lo=0, hi=255)  # Keller bus address
+    local_echo: bool = False  # the RS-485 adapter hands every request back (it is dropped)
 
 
 @dataclass(frozen=True, slots=True)

@@ -210,7 +210,7 @@ def test_emulators_speak_the_golden_vectors(tmp_path) -> None:
 
         sent.clear()
         m = modem_emu.ModemEmulator(
-            tmp_path / "m", lambda t: (0.2045, 153.4, 37.0490112, -80.6670001, 3.0)
+            tmp_path / "m", lambda t: (0.2045, 153.4, 37.0490112, -80.6670001, 3.0), online=False
         )
         m.send = sent.append
         m.on_bytes(b"ATRX2\r")

@@ -137,6 +137,8 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     assert last["devices"]["ahrs"]["rate_hz"] == pytest.approx(20.0, rel=0.1)
     # the devices said who they are: the AHRS its firmware, the ESC its battery
     assert last["devices"]["ahrs"]["firmware"] == 1134
+    assert last["devices"]["pressure"]["serial_number"] == 123456
+    assert last["devices"]["ahrs"]["hard_iron"] == [0.0, 0.0, 0.0]  # never calibrated
     assert last["esc"]["battery_v"] == pytest.approx(14.8, abs=0.1)
     assert last["degraded"] == [] or all("integrity" in p for p in last["degraded"])
 
@@ -171,6 +173,8 @@ def test_faults_on_every_port_and_the_daemon_keeps_navigating(mission_dir: Path)
         {"t": 15, "device": "modem", "action": "garbage", "value": 0.3},
         {"t": 28, "device": "modem", "action": "garbage", "value": 0.0},
         {"t": 20, "device": "gps", "action": "gps_on"},
+        {"t": 22, "device": "modem", "action": "online"},  # a CONNECT: commands are data
+        {"t": 25, "device": "pressure", "action": "power_blip"},  # forgets its F48
         {"t": 33, "device": "ahrs", "action": "reconnect"},  # the AHRS port vanishes
         {"t": 35, "device": "modem", "action": "drop_reply", "value": 1.0},  # UDB silent
         *[
@@ -194,6 +198,10 @@ def test_faults_on_every_port_and_the_daemon_keeps_navigating(mission_dir: Path)
     for name in ("ahrs", "gps", "pressure", "motor"):
         assert dev[name]["bad_checksum"] + dev[name]["skipped_bytes"] > 0, name
     assert h["pings"]["timeouts"] + h["pings"]["no_reply"] >= 1
+    # the pressure sensor said "not initialised" and was initialised again: depth is fresh
+    assert dev["pressure"]["device_errors"] >= 1 and h["input_age_s"]["depth"] < 1.0
+    # the modem started online and fell online again: brought back to command mode both times
+    assert h["modem"]["ready"] and h["modem"]["escapes"] >= 2
     # the filter recovers: ranges accepted again after the UDB comes back
     late = [
         (round(r["t"] - m.t0), r["accepted"], r["reason"], r.get("residual_m"), r.get("gate_m"))

@@ -219,12 +219,12 @@ def test_no_reply_with_its_full_stop() -> None:
 
 
 def test_modem_emulator_speaks_as_the_atm900(tmp_path: Path) -> None:
-    emu = ModemEmulator(tmp_path / "m", lambda t: (1.9995, 1499.6, None, None, None))
+    emu = ModemEmulator(tmp_path / "m", lambda t: (1.9995, 1499.6, None, None, None), online=False)
     (text,) = _answers(emu, b"ATRX2\r", wait_s=2.2)
     assert text == GOBY_RANGE + b"OK\r\n"
-    emu = ModemEmulator(tmp_path / "m2", lambda t: None, timeout_s=0.1)
+    emu = ModemEmulator(tmp_path / "m2", lambda t: None, timeout_s=0.1, online=False)
     assert _answers(emu, b"ATRX2\r", wait_s=0.3) == [b"Response Not Received.\r\n"]
-    emu = ModemEmulator(tmp_path / "m3", lambda t: None)
+    emu = ModemEmulator(tmp_path / "m3", lambda t: None, online=False)
     assert _answers(emu, b"ATFOO\r") == [b"Command 'ATFOO' not found\r\n"]
 
 
@@ -304,3 +304,176 @@ def test_the_filter_ranges_from_the_modems_round_trip() -> None:
     outs = nav.feed(Range(1.0, 0.8, 1400.0 * twtt / 2, "udb", 37.0, -79.99, 0.0, twtt))
     (d,) = [o for o in outs if o.get("type") == "range"]
     assert d["range_m"] == pytest.approx(true_m)
+
+
+# GobySoft/goby3 benthos_atm900_driver_fsm.cpp: to reach command mode, "+++" and CR after
+# at least 1 s of silence (Goby waits 1.3 s); in command mode "+++" gets "Command '+++'
+# not found" or a "user:N>" prompt; "CONNECT" means the modem went online, a "Lowpower"
+# prompt that it sleeps.
+
+
+@pytest.mark.parametrize(
+    "text,mode",
+    [
+        (b"Command '+++' not found\r\n", "command"),
+        (b"\r\nuser:1> ", "command"),  # the prompt waits on its line, with no CR LF
+        (b"CONNECT 2400\r\n", "online"),
+        (b"user:1 Lowpower> ", "lowpower"),
+    ],
+)
+def test_the_modem_says_its_mode(text: bytes, mode: str) -> None:
+    (rec,) = modem.ModemDecoder().feed(text, 1.0)
+    assert rec == modem.ModemMode(1.0, mode)
+
+
+def test_the_session_escapes_after_the_guard_and_checks_with_at() -> None:
+    s = modem.ModemSession()
+    s.opened(0.0)
+    assert s.poll(1.0) == b""  # the guard: silence first
+    assert s.poll(modem.GUARD_S) == b"+++\r"
+    s.seen(modem.ModemMode(1.5, "command"))
+    assert s.poll(1.6) == b"AT\r" and not s.ready
+    s.seen(modem.ModemReply(1.7, "ok"))
+    assert s.ready and s.mode == "command"
+    # the modem falls back online: escape again (the host has been silent long enough)
+    s.seen(modem.ModemMode(50.0, "online"))
+    assert not s.ready and s.poll(50.1) == b"+++\r" and s.escapes == 2
+    s.seen(modem.ModemMode(50.2, "command"))
+    assert s.poll(50.3) == b"AT\r"
+    s.seen(modem.ModemReply(50.4, "ok"))
+    # a ping the modem never answered at all: it is not listening, escape again
+    s.wrote(60.0)
+    s.lost(68.0)
+    assert not s.ready and s.poll(68.0) == b"+++\r"
+
+
+def test_the_emulated_modem_starts_online_and_demands_the_guard(tmp_path: Path) -> None:
+    emu = ModemEmulator(tmp_path / "m", lambda t: None)
+    assert _answers(emu, b"AT\r") == []  # online: a command is data
+    emu = ModemEmulator(tmp_path / "m2", lambda t: None)
+    assert _answers(emu, b"AT\r+++\r") == []  # no silence before +++: data too
+    emu = ModemEmulator(tmp_path / "m3", lambda t: None)
+    assert _answers(emu, b"+++\r") == [b"\r\nuser:1> "]
+    assert not emu.online
+
+
+def test_the_daemon_brings_an_online_modem_to_command_mode_and_pings(tmp_path: Path) -> None:
+    from drivers.transport import SerialTransport
+
+    async def main() -> None:
+        emu = ModemEmulator(tmp_path / "m", lambda t: (0.05, 75.0, 37.05, -80.66, 3.0))
+        session = modem.ModemSession()
+        got: list = []
+        dec = modem.ModemDecoder()
+
+        def seen(rec: object) -> None:
+            got.append(rec)
+            if isinstance(rec, modem.ModemMode | modem.ModemReply):
+                session.seen(rec)
+
+        tr = SerialTransport(str(emu.path), 9600, dec, seen)
+        tr.start()
+        while not tr.health.connected:
+            await asyncio.sleep(0.01)
+        loop = asyncio.get_running_loop()
+        session.opened(loop.time())
+        t_end = loop.time() + 8.0
+        while not session.ready and loop.time() < t_end:
+            data = session.poll(loop.time())
+            if data:
+                tr.write(data)
+            await asyncio.sleep(0.05)
+        assert session.ready and not emu.online
+        tr.write(modem.encode_range(2))
+        while not any(isinstance(r, modem.ModemRange) for r in got) and loop.time() < t_end:
+            await asyncio.sleep(0.05)
+        assert any(isinstance(r, modem.ModemRange) for r in got)
+        await tr.stop()
+        emu.close()
+
+    asyncio.run(main())
+
+
+# LSTS DUNE, src/Sensors/Keller/Task.cpp: F69 reads the serial number (a big-endian
+# uint32) after F48; exception 32 means not initialised (answered with F48); RS-485
+# adapters may echo every request ("Serial Port - Local Echo").
+
+
+def test_keller_serial_number(tmp_path: Path) -> None:
+    dec = keller.KellerDecoder(250)
+    assert dec.request_serial() == bytes.fromhex("fa 45 e3 82")
+    (rec,) = dec.feed(bytes.fromhex("fa 45 00 01 e2 40 1e c1"), 1.0)
+    assert rec == keller.SerialNumber(1.0, 123456)
+    emu = KellerEmulator(tmp_path / "k", addr=250, serial_number=123456)
+    assert _answers(emu, bytes.fromhex("fa 45 e3 82")) == [bytes.fromhex("fa 45 00 01 e2 40 1e c1")]
+
+
+def test_keller_power_blip_gives_exception_32_until_f48(tmp_path: Path) -> None:
+    emu = KellerEmulator(tmp_path / "k", addr=250)
+    emu.power_blip()
+    read = keller.encode_read_float(250, keller.CH_PRESSURE)
+    (frame,) = _answers(emu, read)
+    assert frame == bytes.fromhex("fa c9 20 79 06")
+    dec = keller.KellerDecoder(250)
+    dec.request(keller.CH_PRESSURE)
+    (err,) = dec.feed(frame, 1.0)
+    assert isinstance(err, DeviceError) and err.code == keller.E_NOT_INITIALISED
+    assert err.send == keller.encode_init(250)  # what the daemon writes back
+    emu = KellerEmulator(tmp_path / "k2", addr=250)
+    emu.power_blip()
+    answers = _answers(emu, keller.encode_init(250) + read)
+    assert len(answers) == 2 and answers[1][1] == keller.F_READ_FLOAT  # reading again
+
+
+def test_keller_local_echo_is_dropped_not_counted(tmp_path: Path) -> None:
+    from drivers.transport import SerialTransport
+
+    async def main() -> None:
+        emu = KellerEmulator(tmp_path / "k", addr=1, local_echo=True)
+        emu.pressure_bar = 1.5
+        dec = keller.KellerDecoder(1, local_echo=True)
+        got: list = []
+        tr = SerialTransport(str(emu.path), 9600, dec, got.append)
+        tr.start()
+        while not tr.health.connected:
+            await asyncio.sleep(0.01)
+        tr.write(dec.request_init())
+        tr.write(dec.request_serial())
+        for _ in range(5):
+            tr.write(dec.request(keller.CH_PRESSURE))
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(0.2)
+        await tr.stop()
+        emu.close()
+        assert [r.bar for r in got if isinstance(r, Pressure)] == [1.5] * 5
+        assert any(isinstance(r, keller.SerialNumber) for r in got)
+        assert dec.stats.bad_checksum == 0 and dec.stats.skipped_bytes == 0
+        assert dec.stats.reasons["echo"] == 7
+
+    asyncio.run(main())
+
+
+# LSTS DUNE, src/Sensors/Microstrain3DMGX3/Task.cpp: "E5 00 addr_hi addr_lo" reads an
+# EEPROM word (a 5-byte answer); the hard-iron offsets are three float32 from 0x0400;
+# "FE 9E 3A" is a soft reset, with no answer.
+
+
+def test_gx3_hard_iron_is_read_from_eeprom(tmp_path: Path) -> None:
+    dec = ahrs.AhrsDecoder()
+    reads = dec.request_hard_iron()
+    assert reads[:4] == bytes.fromhex("e5 00 04 00") and len(reads) == 24
+    emu = AhrsEmulator(tmp_path / "a")
+    emu.hard_iron = (0.25, -0.5, 0.125)
+    frames = _answers(emu, reads)
+    assert frames[0] == bytes.fromhex("e5 3e 80 01 a3")
+    words = [r for f in frames for r in dec.feed(f, 1.0)]
+    assert [w.address for w in words] == [0x400 + 2 * i for i in range(6)]
+    assert ahrs.hard_iron([w.value for w in words]) == (0.25, -0.5, 0.125)
+
+
+def test_gx3_soft_reset_stops_the_stream(tmp_path: Path) -> None:
+    assert ahrs.encode_soft_reset() == bytes.fromhex("fe 9e 3a")
+    emu = AhrsEmulator(tmp_path / "a")
+    emu.streaming = True
+    assert _answers(emu, ahrs.encode_soft_reset()) == []
+    assert emu.resets == 1 and not emu.streaming

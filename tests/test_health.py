@@ -6,6 +6,7 @@ moves, through the same handlers its serial tasks call.
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 
 import pytest
@@ -33,6 +34,7 @@ class Port:
     def __init__(self) -> None:
         self.health = PortHealth(connected=True)
         self.written: list[bytes] = []
+        self.on_open = None
 
     def write(self, data: bytes) -> bool:
         self.written.append(data)
@@ -216,3 +218,34 @@ def test_modem_refusals_are_counted(tmp_path: Path) -> None:
     h = d.health()
     assert h["pings"]["refused"] == 1 and h["pings"]["last"] == ["refused"]
     assert d.ping_t is None  # the ping is over: the next one may go
+
+
+def test_a_modem_stuck_outside_command_mode_is_not_ok(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    d.modem_session.opened(clock.t)  # the port opened; the modem never answers the escape
+    _navigate(d, clock, 12.0)
+    h = d.health()
+    assert not h["ok"] and any("not in command mode" in p for p in h["degraded"])
+    assert h["modem"]["ready"] is False
+
+
+def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    port = d.devices["ahrs"].transport
+    opened: list[float] = []
+    port.on_open = lambda tr: opened.append(clock.t)  # type: ignore[union-attr]
+    port.health.last_rx = clock.t  # type: ignore[union-attr]
+
+    async def main() -> None:
+        d._recover_ahrs()
+        assert port.written == []  # type: ignore[union-attr]
+        clock.t += 11.0  # nothing from the AHRS since
+        d._recover_ahrs()
+        assert port.written == [ahrs.encode_soft_reset()]  # type: ignore[union-attr]
+        await asyncio.sleep(1.1)
+        assert opened  # the open sequence again
+        d._recover_ahrs()  # not again at once
+        assert len(port.written) == 1  # type: ignore[union-attr]
+
+    asyncio.run(main())
+    assert d.health()["devices"]["ahrs"]["resets"] == 1

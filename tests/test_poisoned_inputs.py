@@ -92,7 +92,11 @@ def test_emulated_modem_paces_its_lines_at_the_baud_rate(tmp_path: Path) -> None
 
     async def main() -> None:
         emu = ModemEmulator(
-            tmp_path / "modem", lambda t: (0.05, 75.0, *BEACON), timeout_s=0.3, baudrate=9600
+            tmp_path / "modem",
+            lambda t: (0.05, 75.0, *BEACON),
+            timeout_s=0.3,
+            baudrate=9600,
+            online=False,
         )
         got: list[tuple[float, object]] = []
         tr = SerialTransport(

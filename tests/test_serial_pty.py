@@ -155,7 +155,7 @@ def test_modem_ranges_after_the_round_trip_and_reports_silence(tmp_path: Path) -
     answer: dict = {"v": (0.3, 222.2, 37.05, -80.66, 3.0)}
 
     async def main() -> None:
-        emu = ModemEmulator(tmp_path / "modem", lambda t: answer["v"], timeout_s=0.3)
+        emu = ModemEmulator(tmp_path / "modem", lambda t: answer["v"], timeout_s=0.3, online=False)
         got: list = []
         tr = SerialTransport(str(emu.path), 9600, modem.ModemDecoder(), got.append)
         tr.start()
@@ -201,7 +201,7 @@ def test_modem_emulator_hears_the_world_channel(tmp_path: Path) -> None:
         loop = asyncio.get_running_loop()
         t0 = loop.time() - 100.0  # mission time 100 s is now
         fn = modem_range_fn(m, t0)
-        emu = ModemEmulator(tmp_path / "modem", lambda t: (asked.append(t), fn(t))[1])
+        emu = ModemEmulator(tmp_path / "modem", lambda t: (asked.append(t), fn(t))[1], online=False)
         got: list = []
         tr = SerialTransport(str(emu.path), 9600, modem.ModemDecoder(), got.append)
         tr.start()

@@ -33,6 +33,8 @@ class AhrsEmulator(Emulator):
         super().__init__(path, seed, baudrate)
         self.firmware = firmware
         self.mip = mip
+        self.hard_iron = (0.0, 0.0, 0.0)  # as shipped: never calibrated
+        self.resets = 0
         self.roll_deg = 0.0
         self.pitch_deg = 0.0
         self.yaw_deg = 0.0  # magnetic, as the device reports
@@ -63,6 +65,24 @@ class AhrsEmulator(Emulator):
             if c == 0xE9:
                 del self._rx[0]
                 self.reply(_with_sum(bytes([0xE9]) + struct.pack(">I", self.firmware)))
+            elif c == 0xE5:
+                if len(self._rx) < 4:
+                    return
+                cmd = bytes(self._rx[:4])
+                del self._rx[:4]
+                word = self._eeprom(int.from_bytes(cmd[2:4], "big"))
+                self.reply(_with_sum(bytes([0xE5]) + word.to_bytes(2, "big")))
+            elif c == 0xFE:
+                if len(self._rx) < 3:
+                    return
+                cmd = bytes(self._rx[:3])
+                del self._rx[:3]
+                if cmd == b"\xfe\x9e\x3a":  # soft reset: the stored settings again
+                    self.resets += 1
+                    self.streaming = False
+                    self.decimation = 10
+                else:
+                    self.reply(REFUSED)
             elif c == 0xCE:
                 del self._rx[0]
                 self.reply(self.euler_frame())
@@ -94,6 +114,14 @@ class AhrsEmulator(Emulator):
                     self.reply(REFUSED)
             else:
                 del self._rx[0]  # not a command the device knows: ignored
+
+    def _eeprom(self, address: int) -> int:
+        base = 0x0400
+        raw = struct.pack(">fff", *self.hard_iron)
+        i = address - base
+        if 0 <= i < len(raw) and i % 2 == 0:
+            return int.from_bytes(raw[i : i + 2], "big")
+        return 0
 
     @property
     def rate_hz(self) -> float:

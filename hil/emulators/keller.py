@@ -2,7 +2,9 @@
 
 ``status`` is the status byte every F73 answer carries (*Communication protocol Serie
 30* v2.2, section 4.8): set bit 1 (0x02) for a P1 measuring error, bit 4 (0x10) for
-a TOB1 error.
+a TOB1 error.  After ``power_blip()`` the device answers every read with exception
+32 (not initialised) until it gets F48 again.  ``local_echo`` plays an RS-485 adapter
+that hands every request back (LSTS DUNE, Sensors/Keller).
 """
 
 from __future__ import annotations
@@ -26,15 +28,31 @@ def _crc(data: bytes) -> bytes:
 
 
 class KellerEmulator(Emulator):
-    def __init__(self, path, addr: int = 250, seed: int = 0, baudrate: int | None = None) -> None:
+    def __init__(
+        self,
+        path,
+        addr: int = 250,
+        seed: int = 0,
+        baudrate: int | None = None,
+        local_echo: bool = False,
+        serial_number: int = 123456,
+    ) -> None:
         super().__init__(path, seed, baudrate)
         self.addr = addr
+        self.local_echo = local_echo
+        self.serial_number = serial_number
+        self.initialised = True
         self.pressure_bar = 1.01325
         self.temperature_c = 12.0
         self.status = 0
         self._rx = bytearray()
 
+    def power_blip(self) -> None:
+        self.initialised = False
+
     def on_bytes(self, data: bytes) -> None:
+        if self.local_echo:
+            self.port.write(data)  # the adapter, not the sensor: no faults apply
         self._rx += data
         while len(self._rx) >= 4:
             if self._rx[0] != self.addr and self._rx[0] != 250:
@@ -53,7 +71,12 @@ class KellerEmulator(Emulator):
 
     def _answer(self, fn: int, req: bytes) -> None:
         if fn == 48:
+            self.initialised = True
             body = bytes([self.addr, 48, 5, 20, 16, 10, 0, 0])  # class 5, group 20, 2016 wk 10
+        elif not self.initialised:
+            body = bytes([self.addr, fn | 0x80, 32])  # exception 32: not initialised
+        elif fn == 69:
+            body = bytes([self.addr, 69]) + self.serial_number.to_bytes(4, "big")
         elif fn == 73:
             channel = req[2]
             if channel == 1:

@@ -3,7 +3,10 @@
 It prints what the ATM-900 prints (docs/protocols.md, "Benthos"): the range line
 with its round trip and relative speed, ``Response Not Received.`` after its own
 timeout, ``ERROR`` for a command it cannot run now, and its shell's
-``Command '...' not found`` for one it does not know.
+``Command '...' not found`` for one it does not know.  Like the modem after power-up
+it starts online (data mode), where commands are data: ``+++`` after at least one
+second of silence brings its shell (``user:1>``), ``ATO`` or ``go_online()`` (a
+``CONNECT``) takes it back online.
 
 ``range_to(t)`` is supplied by whoever drives the emulator (the world simulator, or a
 test): given the time of the ping it returns ``(round_trip_s, range_m, lat, lon, depth)``
@@ -18,6 +21,7 @@ from collections.abc import Callable
 
 from hil.emulators.base import Emulator
 
+GUARD_S = 1.0  # the silence the modem demands before +++
 RangeFn = Callable[[float], tuple[float, float, float | None, float | None, float | None] | None]
 
 
@@ -31,8 +35,11 @@ class ModemEmulator(Emulator):
         timeout_s: float = 4.0,
         baudrate: int | None = None,
         sound_speed_mps: float = 1500.0,
+        online: bool = True,
     ) -> None:
         super().__init__(path, seed, baudrate)
+        self.online = online
+        self._t_rx = -1e9  # when the last byte came: the escape needs silence before it
         self.sound_speed_mps = sound_speed_mps  # the modem's setting: range = c * round trip / 2
         self.range_to = range_to
         self.own_addr = own_addr
@@ -41,7 +48,24 @@ class ModemEmulator(Emulator):
         self.busy = False
         self._rx = bytearray()
 
+    def go_online(self) -> None:
+        self.online = True
+        self.send(b"CONNECT 2400\r\n")
+
     def on_bytes(self, data: bytes) -> None:
+        now = self.now()
+        silence, self._t_rx = now - self._t_rx, now
+        if self.online:
+            if silence >= GUARD_S:
+                self._rx.clear()  # an escape counts only after the guard time
+            self._rx += data
+            if self._rx.startswith(b"+++"):
+                self.online = False
+                del self._rx[:3]
+                self.reply(b"\r\nuser:1> ")
+            elif not b"+++".startswith(bytes(self._rx[:3])):
+                self._rx.clear()  # data for the acoustic link
+            return
         self._rx += data
         while True:
             i = self._rx.find(b"\r")
@@ -58,6 +82,8 @@ class ModemEmulator(Emulator):
             return
         if line == "AT":
             self.reply(b"OK\r\n")
+        elif line == "ATO":
+            self.go_online()
         elif self.faults.error_reply and self.rng.random() < self.faults.error_reply:
             self.reply(b"ERROR\r\n")
         elif line.startswith("ATRX") or line.startswith("ATR"):
