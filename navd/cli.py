@@ -1,4 +1,4 @@
-"""The ``navd`` command line: replay, report, check-config.
+"""The ``navd`` command line: run, replay, report, watch, capture, check-config.
 
 Bad input ends in one line on stderr and exit status 2, never a traceback.
 """
@@ -78,6 +78,20 @@ def _cmd_watch(args: argparse.Namespace) -> int:
     return watch(load_config(args.config), args.count, args.seconds, args.every)
 
 
+def _cmd_capture(args: argparse.Namespace) -> int:
+    import logging
+
+    from navd.capture import capture
+
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    path = capture(load_config(args.config), args.device, args.seconds, args.out)
+    if path is None:
+        print(f"navd: capture: nothing written (did devices.{args.device}.port open?)")
+        return 1
+    print(path)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="navd", description="AUV navigation daemon and tools")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -112,6 +126,16 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--seconds", type=float, help="stop after this long")
     w.add_argument("--every", type=float, default=1.0, help="print at most every N s (0: all)")
     w.set_defaults(func=_cmd_watch)
+
+    cap = sub.add_parser(
+        "capture",
+        help="record every byte one device sends, asked as navd asks it in service",
+    )
+    cap.add_argument("device", help="ahrs, gps, pressure, motor or modem")
+    cap.add_argument("--config", required=True, help="the vehicle's config (the port)")
+    cap.add_argument("--seconds", type=float, default=30.0, help="how long (default 30)")
+    cap.add_argument("--out", required=True, help="directory for the capture log")
+    cap.set_defaults(func=_cmd_capture)
 
     c = sub.add_parser("check-config", help="validate a configuration file and explain it")
     c.add_argument("file")

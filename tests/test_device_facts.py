@@ -477,3 +477,47 @@ def test_gx3_soft_reset_stops_the_stream(tmp_path: Path) -> None:
     emu.streaming = True
     assert _answers(emu, ahrs.encode_soft_reset()) == []
     assert emu.resets == 1 and not emu.streaming
+
+
+def test_capture_records_a_device_as_navd_asks_it(tmp_path: Path) -> None:
+    """``navd capture pressure``: F48, F69 and F73 polls go out as in service, and the
+    bytes that came back decode again (the procedure of docs/protocols.md)."""
+    import threading
+
+    from navd.capture import capture, raw_frames
+
+    loop = asyncio.new_event_loop()
+    emu_ready = threading.Event()
+    holder: dict = {}
+
+    def serve() -> None:
+        asyncio.set_event_loop(loop)
+
+        async def start() -> None:
+            holder["emu"] = KellerEmulator(tmp_path / "pressure", addr=1)
+            holder["emu"].pressure_bar = 1.2
+            emu_ready.set()
+
+        loop.run_until_complete(start())
+        loop.run_forever()
+
+    th = threading.Thread(target=serve, daemon=True)
+    th.start()
+    emu_ready.wait(5.0)
+    cfg = config_from_dict({"devices": {"pressure": {"port": str(tmp_path / "pressure")}}})
+    path = capture(cfg, "pressure", 2.0, tmp_path / "cap")
+    loop.call_soon_threadsafe(holder["emu"].close)
+    loop.call_soon_threadsafe(loop.stop)
+    th.join(5.0)
+    assert path is not None
+    frames = raw_frames(path, "pressure")
+    dec = keller.KellerDecoder(1)
+    dec.request_init()
+    recs = [r for t, b in frames for r in dec.feed(b, t)]
+    assert any(isinstance(r, keller.SerialNumber) for r in recs)
+    # the polls were answered: the readings are in the capture
+    dec2 = keller.KellerDecoder(1)
+    for _ in range(50):
+        dec2.request(keller.CH_PRESSURE)
+    readings = [r for t, b in frames for r in dec2.feed(b, t) if isinstance(r, Pressure)]
+    assert len(readings) >= 10 and all(r.bar == pytest.approx(1.2) for r in readings)

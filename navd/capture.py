@@ -1,0 +1,68 @@
+"""``navd capture``: record what one real device sends, to settle protocol facts.
+
+The daemon runs with only that device enabled, asking it exactly what it asks in
+service (the open sequence, the polls, the pings), without zenoh, logging every
+byte the port delivers.  ``raw_frames`` reads the bytes back, so a test can feed
+them to the device's decoder as golden vectors (docs/protocols.md, "Check against
+the hardware").
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+from pathlib import Path
+
+from navd.config import Config, ConfigError
+from navd.jsonlines import DecodeError, loads
+
+DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
+
+
+def capture_config(cfg: Config, device: str, out_dir: str | Path) -> Config:
+    """``cfg`` with only ``device`` enabled and every byte of it logged to ``out_dir``."""
+    if device not in DEVICES:
+        raise ConfigError(f"capture: no device {device!r} (one of {', '.join(DEVICES)})")
+    dev = getattr(cfg.devices, device)
+    if not dev.port:
+        raise ConfigError(f"devices.{device}.port: required to capture from it")
+    devices = dataclasses.replace(
+        cfg.devices,
+        **{
+            name: dataclasses.replace(getattr(cfg.devices, name), enabled=name == device)
+            for name in DEVICES
+        },
+    )
+    log = dataclasses.replace(
+        cfg.log, dir=str(out_dir), raw_bytes=True, raw_budget_bytes_per_s=1e8, keep_mb=0.0
+    )
+    return dataclasses.replace(cfg, devices=devices, log=log)
+
+
+def capture(cfg: Config, device: str, seconds: float, out_dir: str | Path) -> Path | None:
+    """Run the capture; returns the log file written (None if the port never opened)."""
+    from navd.app import Daemon
+
+    daemon = Daemon(capture_config(cfg, device, out_dir))
+
+    async def main() -> None:
+        stop = asyncio.Event()
+        asyncio.get_running_loop().call_later(seconds, stop.set)
+        await daemon.run(stop)
+
+    asyncio.run(main())
+    return daemon.rlog.path
+
+
+def raw_frames(path: str | Path, device: str) -> list[tuple[float, bytes]]:
+    """The bytes ``device`` delivered, with their arrival times, from a daemon log."""
+    out = []
+    with Path(path).open(encoding="utf-8") as fh:
+        for line in fh:
+            try:
+                obj = loads(line)
+            except DecodeError:
+                continue  # a line cut by a kill: the rest still counts
+            if isinstance(obj, dict) and obj.get("type") == "raw" and obj.get("device") == device:
+                out.append((float(obj["t"]), bytes.fromhex(obj["hex"])))
+    return out
