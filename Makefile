@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-soak clean
+	bench-robustness bench-soak bench-calibration clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -51,6 +51,10 @@ bench-daemon: $(STAMP)
 # 120 missions with drawn sensor errors and conditions (about 30 minutes on 2 cores)
 bench-robustness: $(STAMP)
 	$(BIN)/python -m bench.robustness --missions 120 --write BENCHMARKS.md
+
+# calibrating compass and speed from a surface circle, over 12 drawn missions (about 5 minutes)
+bench-calibration: $(STAMP)
+	$(BIN)/python -m bench.calibration --missions 12 --write BENCHMARKS.md
 
 # an hour of the daemon under faults; needs unshare and mount (root) for the full-disk fault
 bench-soak: $(STAMP)

@@ -40,6 +40,8 @@ class Vehicle:
     surface_before_s: float = _f(60.0, lo=0.0)
     surface_after_s: float = _f(60.0, lo=0.0)
     legs: list[Leg] = field(default_factory=lambda: [Leg()])
+    # run at the surface first, with GPS (a calibration circle or lawnmower)
+    surface_legs: list[Leg] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,6 +57,10 @@ class Current:
 class Sensors:
     declination_deg: float = _f(0.0, lo=-90.0, hi=90.0)
     compass_bias_deg: float = _f(0.0, lo=-45.0, hi=45.0)  # unknown to the filter
+    # a deviation curve A, B, C, D, E (navd/filter/compass.py) of the magnetic heading
+    compass_deviation_deg: list[float] = field(
+        default_factory=list, metadata={"lo": -45.0, "hi": 45.0}
+    )
     compass_noise_deg: float = _f(1.0, lo=0.0)
     rpm_per_mps: float = _f(910.0, gt=0.0)  # the true map; the config has the trial's
     rpm_noise: float = _f(5.0, lo=0.0)
@@ -166,6 +172,8 @@ def scenario_from_dict(data: Any) -> Scenario:
     data = dict(data)
     cfg = data.pop("config", None) or {}
     sc = build(Scenario, data)
+    if len(sc.sensors.compass_deviation_deg) not in (0, 5):
+        raise ConfigError("sensors.compass_deviation_deg: expected A, B, C, D, E (or none)")
     if not isinstance(cfg, dict):
         raise ConfigError("config: expected a mapping")
     return Scenario(**{**{f: getattr(sc, f) for f in sc.__dataclass_fields__}, "config": cfg})

@@ -26,6 +26,7 @@ from pyproj import Transformer
 
 from hil.scenario import Scenario
 from navd.acoustics import coppens
+from navd.filter.compass import deviation_deg
 from navd.records import (
     Attitude,
     Depth,
@@ -81,7 +82,12 @@ class _Plan:
     def __init__(self, sc: Scenario) -> None:
         v = sc.vehicle
         self.v = v
-        self.t_dive = v.surface_before_s
+        t = 0.0
+        self.surface_legs = []
+        for leg in v.surface_legs:
+            self.surface_legs.append((t, t + leg.duration_s, leg))
+            t += leg.duration_s
+        self.t_dive = t + v.surface_before_s
         self.descent = v.depth_m / v.dive_rate_mps
         t = self.t_dive
         self.legs = []
@@ -95,6 +101,9 @@ class _Plan:
     def command(self, t: float) -> tuple[float | None, float, float]:
         """(heading_deg or None to hold, speed, depth) commanded at t."""
         v = self.v
+        for t0, t1, leg in self.surface_legs:
+            if t0 <= t < t1:
+                return leg.heading_deg, leg.speed_mps or v.speed_mps, 0.0
         if t < self.t_dive or t >= self.t_surface:
             return None, 0.0, 0.0
         if t >= self.t_up:
@@ -200,7 +209,9 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         transducer.append(_offset(boat_lat, boat_lon, float(swing[0]), float(swing[1])))
 
         # sensors at this instant
-        hmag = heading - s.declination_deg + s.compass_bias_deg + rng.normal(0, s.compass_noise_deg)
+        h_m = heading - s.declination_deg
+        dev = deviation_deg(s.compass_deviation_deg, h_m)
+        hmag = h_m + s.compass_bias_deg + dev + rng.normal(0, s.compass_noise_deg)
         records.append(Heading(t, hmag % 360.0))
         rpm = speed * s.rpm_per_mps + (rng.normal(0, s.rpm_noise) if speed > 0 else 0.0)
         records.append(Rpm(t, max(0.0, rpm)))

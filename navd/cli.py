@@ -1,4 +1,4 @@
-"""The ``navd`` command line: run, replay, report, watch, capture, check-config.
+"""The ``navd`` command line: run, replay, report, watch, capture, calibrate, check-config.
 
 Bad input ends in one line on stderr and exit status 2, never a traceback.
 """
@@ -92,6 +92,57 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from navd.calibrate import CalibrationError, fit, stretches, supports_offset
+    from navd.mlog import read_measurement_log
+
+    cfg = load_config(args.config)
+    nav = cfg.navigation
+    records = [r for path in args.log for r in read_measurement_log(path).records]
+    records.sort(key=lambda r: r.t)
+    runs = stretches(records, args.window)
+    try:
+        if args.what == "compass":
+            f = fit(runs, nav.magnetic_declination_deg, nav.speed.rpm_per_mps)
+        else:
+            f = fit(
+                runs,
+                nav.magnetic_declination_deg,
+                nav.speed.rpm_per_mps,
+                deviation=nav.compass_deviation_deg,
+                fit_deviation=False,
+                fit_offset=supports_offset(runs),
+            )
+    except CalibrationError as exc:
+        print(f"navd: calibrate {args.what}: {exc}", file=sys.stderr)
+        return 2
+    print(
+        f"{f.stretches} straight surface stretches, headings over {f.coverage_deg:.0f} deg; "
+        f"residual {f.residual_deg:.2f} deg, {f.residual_mps:.3f} m/s; "
+        f"current {f.current_n:+.3f} N {f.current_e:+.3f} E m/s"
+    )
+    if args.what == "compass":
+        for name, c, sd in zip("ABCDE", f.deviation_deg, f.deviation_std_deg, strict=True):
+            print(f"  {name} {c:+7.2f} +- {sd:.2f} deg")
+        snippet = "navigation:\n  compass_deviation_deg: [{}]\n".format(
+            ", ".join(f"{c:.3f}" for c in f.deviation_deg)
+        )
+    else:
+        print(f"  rpm_per_mps {f.rpm_per_mps:.1f} +- {f.rpm_per_mps_std:.1f}")
+        print(f"  offset_mps {f.offset_mps:+.3f} +- {f.offset_std_mps:.3f}")
+        snippet = (
+            "navigation:\n  speed:\n"
+            f"    rpm_per_mps: {f.rpm_per_mps:.1f}\n    offset_mps: {f.offset_mps:.3f}\n"
+        )
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(snippet)
+        print(f"wrote {args.out}")
+    else:
+        print(snippet, end="")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="navd", description="AUV navigation daemon and tools")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -136,6 +187,19 @@ def build_parser() -> argparse.ArgumentParser:
     cap.add_argument("--seconds", type=float, default=30.0, help="how long (default 30)")
     cap.add_argument("--out", required=True, help="directory for the capture log")
     cap.set_defaults(func=_cmd_capture)
+
+    cal = sub.add_parser(
+        "calibrate",
+        help="fit the compass deviation curve or the RPM map from surface runs with GPS",
+    )
+    cal.add_argument("what", choices=["compass", "speed"])
+    cal.add_argument("log", nargs="+", help="measurement or daemon log(s) with the surface runs")
+    cal.add_argument("--config", help="the vehicle's config (declination, current speed map)")
+    cal.add_argument(
+        "--window", type=float, default=120.0, help="longest straight run per stretch (s)"
+    )
+    cal.add_argument("--out", help="write the config snippet here (else printed)")
+    cal.set_defaults(func=_cmd_calibrate)
 
     c = sub.add_parser("check-config", help="validate a configuration file and explain it")
     c.add_argument("file")

@@ -39,6 +39,8 @@ def _num(default: float, **kw: float) -> Any:
 class SpeedConfig:
     # linear RPM-to-surge map from a speed trial; below 1 any RPM would be a ship's speed
     rpm_per_mps: float = _num(910.0, lo=1.0, hi=1e6)
+    # added to rpm / rpm_per_mps while the propeller turns (navd calibrate speed)
+    offset_mps: float = _num(0.0, lo=-2.0, hi=2.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,6 +125,11 @@ class NavigationConfig:
     # the fastest current this site can have (strong tidal races reach about 3 m/s): a
     # learned current is held below it, and a re-acquisition implying more is refused
     max_current_mps: float = _num(2.0, gt=0.0, hi=10.0)
+    # the compass's deviation curve A, B, C, D, E in degrees (navd/filter/compass.py),
+    # as ``navd calibrate compass`` fits it; empty: none
+    compass_deviation_deg: list[float] = field(
+        default_factory=list, metadata={"lo": -45.0, "hi": 45.0}
+    )
     speed: SpeedConfig = field(default_factory=SpeedConfig)
     sound_speed: SoundSpeedConfig = field(default_factory=SoundSpeedConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
@@ -370,6 +377,12 @@ def config_from_dict(data: Any) -> Config:
         if "0.0.0.0" in ep or "[::]" in ep:
             # commands reach the vehicle through this: it listens on a named network only
             _fail(f"zenoh.listen[{i}]", f"{ep} listens on every interface; give an address")
+    n = len(cfg.navigation.compass_deviation_deg)
+    if n not in (0, 5):
+        _fail(
+            "navigation.compass_deviation_deg",
+            f"expected the 5 coefficients A, B, C, D, E (or none), got {n}",
+        )
     m = cfg.devices.modem
     if m.reply_timeout_s <= m.modem_timeout_s:
         _fail(

@@ -21,6 +21,7 @@ from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
 from navd.dvl import DvlDeadReckoner, DvlSpec
+from navd.filter import compass
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import NavFilter, RangeDecision, RangeMeas
 from navd.filter.deadreckoning import DeadReckoner
@@ -114,6 +115,7 @@ class Navigator:
         self.beacons = BeaconResolver(cfg.beacons, nav.gate)
         self.sound = nav.sound_speed.model_obj()
         self.decl = math.radians(nav.magnetic_declination_deg)
+        self.deviation = tuple(nav.compass_deviation_deg)
         self.tick_dt = 1.0 / nav.rate_hz
         self.counters: Counter[str] = Counter()
         ig = nav.integrity
@@ -247,7 +249,11 @@ class Navigator:
     def _speed_heading(self, t: float) -> tuple[float, float]:
         if self._heading_deg is None:
             return 0.0, 0.0  # no compass yet: hold position rather than guess a direction
-        speed = (self._rpm or 0.0) / self.nav.speed.rpm_per_mps
+        sp = self.nav.speed
+        rpm = self._rpm or 0.0
+        speed = rpm / sp.rpm_per_mps
+        if rpm > 0:  # ahead: the trial's offset, never a speed astern
+            speed = max(0.0, speed + sp.offset_mps)
         return math.radians(self._heading_deg) + self.decl, speed
 
     def _propagate_to(self, t: float) -> None:
@@ -277,11 +283,12 @@ class Navigator:
 
     # -- inputs ------------------------------------------------------------------------
     def _on_heading(self, rec: Heading) -> None:
-        self._heading_deg, self._t_heading = rec.deg, rec.t
+        self._heading_deg, self._t_heading = compass.correct(self.deviation, rec.deg), rec.t
 
     def _on_attitude(self, rec: Attitude) -> None:
-        self._heading_deg, self._t_heading = rec.yaw_deg, rec.t
-        self.dvl.attitude(rec.roll_deg, rec.pitch_deg, rec.yaw_deg)
+        yaw = compass.correct(self.deviation, rec.yaw_deg)
+        self._heading_deg, self._t_heading = yaw, rec.t
+        self.dvl.attitude(rec.roll_deg, rec.pitch_deg, yaw)
 
     def _on_rpm(self, rec: Rpm) -> None:
         self._rpm, self._t_rpm = rec.rpm, rec.t
