@@ -521,3 +521,17 @@ def test_capture_records_a_device_as_navd_asks_it(tmp_path: Path) -> None:
         dec2.request(keller.CH_PRESSURE)
     readings = [r for t, b in frames for r in dec2.feed(b, t) if isinstance(r, Pressure)]
     assert len(readings) >= 10 and all(r.bar == pytest.approx(1.2) for r in readings)
+
+
+def test_received_data_lines_do_not_confuse_the_parser() -> None:
+    """Goby3: received data arrives as DATA(NNNN):..., Source/Destination, CRC/SNR and
+    <EOP> lines; they are the modem's own output, not garbage, and carry no range."""
+    dec = modem.ModemDecoder()
+    text = (
+        b"DATA(0004):48656c6c\r\nSource:001  Destination:002\r\n"
+        b"CRC:Pass MPD:03.2 SNR:31.3 AGC:91 SPD:+00.0 CCERR:013\r\n<EOP>\r\n"
+    )
+    assert dec.feed(text, 1.0) == []
+    assert dec.stats.skipped_bytes == 0
+    (rng,) = dec.feed(GOBY_RANGE + b"OK\r\n", 2.0)[:1]
+    assert rng.range_m == 1499.6
