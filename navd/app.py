@@ -50,10 +50,7 @@ class _Logged:
 
     def __init__(self, name: str, inner: Any, rlog: RecordLog) -> None:
         self.name, self.inner, self.rlog = name, inner, rlog
-
-    @property
-    def stats(self) -> DecodeStats:
-        return self.inner.stats
+        self.stats: DecodeStats = inner.stats  # the same counters, not a copy
 
     def feed(self, data: bytes, t: float) -> list[object]:
         self.rlog.raw_bytes(t, self.name, data)
@@ -316,7 +313,11 @@ class Daemon:
             specs.append(("pressure", d.pressure, kd, keller_open))
         if d.motor.enabled:
             cd = castle.CastleDecoder(d.motor.pole_pairs, d.motor.device_id)
-            specs.append(("motor", d.motor, cd, lambda tr, cd=cd: tr.write(cd.request_clear())))
+
+            def motor_open(tr: SerialTransport, cd: castle.CastleDecoder = cd) -> None:
+                tr.write(cd.request_clear())  # a half request left in the ESC is dropped
+
+            specs.append(("motor", d.motor, cd, motor_open))
         if d.modem.enabled:
 
             def modem_open(tr: SerialTransport) -> None:
