@@ -24,10 +24,12 @@ fuzz: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check navd drivers hil tests bench
+	$(BIN)/mypy
 	$(BIN)/pytest
 
 lint: $(STAMP)
 	$(BIN)/ruff check navd drivers hil tests bench
+	$(BIN)/mypy
 
 # The daemon on the emulated vehicle (about two minutes), watched live, then reported.
 demo: $(STAMP)

@@ -16,6 +16,7 @@ import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 from bench.common import mode_config, report
 from hil.scenario import list_scenarios, load_scenario
@@ -64,9 +65,10 @@ def dvl_errors(mission_dir: Path, truth: list[dict]) -> tuple[float, float, floa
     return dist, err, last["dvl_error_pred_m"]
 
 
-def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[Score]]:
+def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[Any]]:
+    """Scores per mode, and the DVL's (distance, error, predicted error) per seed."""
     sc = load_scenario(name)
-    res: dict[str, list[Score]] = {"default": [], "smoothed": [], "thesis": [], "vlbl": []}
+    res: dict[str, list[Any]] = {"default": [], "smoothed": [], "thesis": [], "vlbl": []}
     for seed in seeds:
         d = workdir / f"{name}-{seed}"
         write_mission(simulate(sc, seed), d)
@@ -76,7 +78,7 @@ def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[S
         res["thesis"].append(score(replay(d, "thesis"), truth))
         res["vlbl"].append(score(replay(d, "vlbl"), truth))
         if sc.sensors.dvl:
-            res.setdefault("dvl", []).append(dvl_errors(d, truth))  # type: ignore[arg-type]
+            res.setdefault("dvl", []).append(dvl_errors(d, truth))
     return res
 
 
@@ -91,7 +93,7 @@ def _reacq(d: list[Score]) -> str:
     return f"{n:.1f} ({max(replies):.0f})" if replies else f"{n:.1f}"
 
 
-def _most_replies(results: dict[str, dict[str, list[Score]]]) -> str:
+def _most_replies(results: dict[str, dict[str, list[Any]]]) -> str:
     xs = [
         x.reacquire_replies_max
         for r in results.values()
@@ -101,7 +103,7 @@ def _most_replies(results: dict[str, dict[str, list[Score]]]) -> str:
     return f"{max(xs):.0f}" if xs else "-"
 
 
-def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
+def table(results: dict[str, dict[str, list[Any]]], seeds: list[int]) -> str:
     lines = [
         f"Mean over seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds). Errors in metres over the "
         "submerged part; *surf* = error of the last submerged estimate; *in95* = fraction of "
@@ -118,7 +120,13 @@ def table(results: dict[str, dict[str, list[Score]]], seeds: list[int]) -> str:
         "| VLBL fix rms (coverage) | VLBL mode rms |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    tot = {"dr": [], "thesis": [], "default": [], "smoothed": [], "in95": []}
+    tot: dict[str, list[float]] = {
+        "dr": [],
+        "thesis": [],
+        "default": [],
+        "smoothed": [],
+        "in95": [],
+    }
     for name, r in results.items():
         d, t, s = r["default"], r["thesis"], r["smoothed"]
         row = {

@@ -53,6 +53,8 @@ def main() -> int:
             for line in fh:
                 if '"type":"health"' in line:
                     health = line
+        if health is None:
+            raise SystemExit("bench-daemon: the daemon logged no health")
         h = json.loads(health)
     tl, pl = h["tick_lateness_ms"], h["publish_latency_ms"]
     body = "\n".join(

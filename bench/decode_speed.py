@@ -13,7 +13,9 @@ import asyncio
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from bench.common import report
 from drivers import ahrs, castle, gps, keller, modem
@@ -23,7 +25,7 @@ from hil.emulators.gps import GpsEmulator
 N = 20_000
 
 
-def _frames(tmp: Path) -> dict[str, tuple[object, list[bytes], float]]:
+def _frames(tmp: Path) -> dict[str, tuple[Callable[[], Any], list[bytes], float]]:
     async def make() -> tuple[bytes, bytes]:
         a = AhrsEmulator(tmp / "a")
         a.roll_deg, a.pitch_deg, a.yaw_deg = 1.0, -2.0, 123.0

@@ -186,12 +186,12 @@ def _mean(xs: list[float]) -> float:
 
 def _row(name: str, rs: list[Result]) -> str:
     ok = [r for r in rs if r.default is not None and r.thesis is not None]
-    d = [r.default for r in ok]
-    t = [r.thesis for r in ok]
-    rms_d = _mean([x.rms_m for x in d])  # type: ignore[union-attr]
-    rms_t = _mean([x.rms_m for x in t])  # type: ignore[union-attr]
-    rms_dr = _mean([x.dr_rms_m for x in d])  # type: ignore[union-attr]
-    beats_dr = sum(1 for x in d if x.rms_m <= x.dr_rms_m) / len(d) if d else math.nan  # type: ignore[union-attr]
+    d = [r.default for r in ok if r.default is not None]
+    t = [r.thesis for r in ok if r.thesis is not None]
+    rms_d = _mean([x.rms_m for x in d])
+    rms_t = _mean([x.rms_m for x in t])
+    rms_dr = _mean([x.dr_rms_m for x in d])
+    beats_dr = sum(1 for x in d if x.rms_m <= x.dr_rms_m) / len(d) if d else math.nan
     return (
         f"| {name} | {len(rs)} | {sum(1 for r in rs if r.error)} | "
         f"{sum(1 for r in rs if r.diverged)} | {rms_d:.1f} | {rms_t:.1f} | {rms_dr:.1f} | "

@@ -139,7 +139,7 @@ def _spam(port: int, seconds: float) -> dict[str, int]:
         out["sent"] += 1
         if not replies:
             out["unanswered"] += 1
-        elif json.loads(replies[0].ok.payload.to_bytes())["ok"]:
+        elif (ans := replies[0].ok) is not None and json.loads(ans.payload.to_bytes())["ok"]:
             out["ok"] += 1
         else:
             out["refused"] += 1

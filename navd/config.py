@@ -328,7 +328,7 @@ def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
                 _fail(path, f"names must be non-empty printable strings, got {_show(k)}")
             out[k] = _convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
         return out
-    if is_dataclass(tp):
+    if isinstance(tp, type) and is_dataclass(tp):
         return _build(tp, value, path)
     if tp in (float, int):
         return _check_number(value, tp, meta, path)

@@ -15,7 +15,7 @@ from typing import Any
 try:
     import orjson
 except ImportError:  # pragma: no cover - orjson is a dependency; the fallback is for vendors
-    orjson = None
+    orjson = None  # type: ignore[assignment]
 
 __all__ = ["loads", "dumps_line", "DecodeError"]
 

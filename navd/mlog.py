@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO, Any
@@ -130,7 +130,7 @@ def _parse_tt(o: dict, t: float) -> TravelTime:
     )
 
 
-_PARSERS = {
+_PARSERS: dict[str, Callable[[dict, float], Record]] = {
     "heading": lambda o, t: Heading(t, _num(o, "deg")),
     "attitude": lambda o, t: Attitude(
         t, _num(o, "roll_deg"), _num(o, "pitch_deg"), _num(o, "yaw_deg")

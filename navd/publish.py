@@ -88,6 +88,7 @@ def validate_beacon(body: dict[str, Any]) -> str | None:
         v = body.get(key)
         if not _finite(v):
             return f"field '{key}' must be a finite number"
+        assert isinstance(v, int | float)  # what _finite just checked
         if not lo <= v <= hi:
             return f"field '{key}'={v} outside [{lo:g}, {hi:g}]"
     return None

@@ -51,6 +51,8 @@ def _surfacing_error(est: list[dict], fixes: list[Gps]) -> tuple[float, float] |
     if not after:
         return None
     f = after[0]
+    if f.lat is None or f.lon is None:
+        return None
     g = _Grid(last_sub["lat"], last_sub["lon"])
     return math.hypot(*g.en(f.lat, f.lon)), f.t - last_sub["t"]
 
@@ -95,7 +97,10 @@ def make_report(
     if acc:
         ax.plot(*zip(*acc, strict=True), "gx", ms=6, label="range accepted")
     if fixes:
-        ge, gn = zip(*(grid.en(f.lat, f.lon) for f in fixes if f.lat is not None), strict=True)
+        ge, gn = zip(
+            *(grid.en(f.lat, f.lon) for f in fixes if f.lat is not None and f.lon is not None),
+            strict=True,
+        )
         ax.plot(ge, gn, "r.", ms=3, label="GPS fixes")
     bea = [grid.en(r["beacon_lat"], r["beacon_lon"]) for r in rng if "beacon_lat" in r]
     if bea:

@@ -8,6 +8,7 @@ and answers single-byte commands with nothing.
 
 from __future__ import annotations
 
+import asyncio
 import math
 import struct
 import time
@@ -42,7 +43,7 @@ class AhrsEmulator(Emulator):
         self.streaming = False
         self._t0 = time.monotonic()
         self._rx = bytearray()
-        self._stream_task = None
+        self._stream_task: asyncio.Task[None] | None = None
 
     def _timer(self) -> int:
         return int((time.monotonic() - self._t0) * 62_500) & 0xFFFFFFFF

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -99,11 +99,12 @@ class NavFilter(Protocol):
 
     def estimate(self) -> Estimate: ...
 
-    def state_diff(self, a: object, b: object) -> np.ndarray: ...
+    # a mode's state is its own (an array, or an array with a reference point)
+    def state_diff(self, a: Any, b: Any) -> np.ndarray: ...
 
-    def state_apply(self, x: object, dx: np.ndarray) -> object: ...
+    def state_apply(self, x: Any, dx: np.ndarray) -> Any: ...
 
-    def estimate_of(self, x: object, P: np.ndarray) -> Estimate: ...
+    def estimate_of(self, x: Any, P: np.ndarray) -> Estimate: ...
 
 
 def joseph_update(
