@@ -337,9 +337,10 @@ class Navigator:
             self._alt_sum += rec.alt
             self._alt_n += 1
         warm = rec.t - self._t_gps_streak < self.nav.gps.warmup_s
-        std = _gps_std(
-            self.nav.gps.warmup_std_m if warm else self.nav.noise.gps_std_m, rec.hdop, rec.quality
-        )
+        std = _gps_std(self.nav.noise.gps_std_m, rec.hdop, rec.quality)
+        if warm and rec.quality not in _RTK_STD_M:
+            # just after surfacing: the receiver's own HDOP may not yet show how poor it is
+            std = max(std, self.nav.gps.warmup_std_m)
         lat, lon = math.radians(rec.lat), math.radians(rec.lon)
         hd = self.surface_altitude - self._depth
         if not self.filter.initialised:
