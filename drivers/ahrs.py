@@ -110,10 +110,6 @@ def fletcher16(data: bytes) -> bytes:
     return bytes([a, b])
 
 
-def encode_euler_poll() -> bytes:
-    return bytes([CMD_EULER])
-
-
 @dataclass(frozen=True, slots=True)
 class Ack:
     t: float

@@ -56,10 +56,6 @@ def encode_range(remote: int) -> bytes:
     return f"ATRX{remote}\r".encode("ascii")
 
 
-def encode_command(cmd: str) -> bytes:
-    return (cmd.strip() + "\r").encode("ascii")
-
-
 @dataclass(frozen=True, slots=True)
 class ModemRange:
     t: float

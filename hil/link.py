@@ -1,8 +1,8 @@
 """Driving the device emulators from the world simulator in real time.
 
-Mission time is ``clock() - t0``; each emulator reads the world at that time.  Only
-the modem link lives here so far; the full bench runner that moves every emulator
-along a mission comes with the daemon (issue 4).
+Mission time is ``clock() - t0``; each emulator reads the world at that time.  The
+modem's acoustic link lives here; ``hil/runner.py`` moves the other emulators along
+the mission.
 """
 
 from __future__ import annotations

@@ -127,7 +127,6 @@ class Daemon:
         self.temperature_c: float | None = None
         # the motor controller's battery voltage, current and temperature
         self.esc: dict[str, float] = {}
-        self.events: deque[str] = deque(maxlen=20)
         self._last_watchdog = -math.inf
         m = cfg.devices.modem
         self.vitals = Vitals(
@@ -200,7 +199,7 @@ class Daemon:
             elif isinstance(rec, Gps | Pressure | Rpm):
                 self.feed(rec)
             elif isinstance(rec, gps.GpsTime):
-                self.gps_utc = rec.utc
+                self.gps_utc = rec.utc or self.gps_utc
             elif isinstance(rec, keller.Temperature):
                 self.temperature_c = rec.c
             elif isinstance(rec, ahrs.Firmware):
@@ -277,7 +276,6 @@ class Daemon:
             if body["name"] not in known and len(known) >= MAX_BEACONS:
                 return f"at most {MAX_BEACONS} beacons"
             self.feed(SetBeacon(t, body["name"], body["lat"], body["lon"], body.get("depth", 0.0)))
-        self.events.append(f"{name} {body}")
         return None
 
     # -- tasks -------------------------------------------------------------------------
@@ -527,6 +525,9 @@ class Daemon:
                 "bad_frame": stats.bad_frame,
                 "skipped_bytes": stats.skipped_bytes,
                 "reconnects": hl.reconnects if hl else 0,
+                "opens": hl.opens if hl else 0,
+                "read_errors": hl.read_errors if hl else 0,
+                "write_errors": hl.write_errors if hl else 0,
                 "last_error": hl.last_error if hl else "",
                 "device_errors": st.device_errors,
                 "resets": st.resets,
@@ -637,6 +638,8 @@ class Daemon:
                 "commands": dict(self.pub.commands),
             },
             "temperature_c": self.temperature_c,
+            # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
+            "gps_utc": self.gps_utc.isoformat() if self.gps_utc else None,
             "esc": dict(self.esc),
         }
 

@@ -105,7 +105,7 @@ def ecef_to_geodetic(
     """Geodetic latitude, longitude and height of an ECEF point.
 
     Bowring's iteration on the parametric latitude; three iterations reach
-    sub-micrometre accuracy for points near the surface.
+    sub-micrometre accuracy for points near the surface, and a fourth is cheap margin.
     """
     e2 = ell.e2
     b = ell.b

@@ -151,9 +151,6 @@ class RecordLog:
         kind = "decision" if out.get("type") == "range" else out.get("type", "output")
         self._write({**out, "type": kind})
 
-    def event(self, t: float, text: str, **fields: Any) -> None:
-        self._write({"type": "event", "t": t, "text": text, **fields})
-
     def flush(self) -> None:
         """Hand buffered lines to the kernel: from here a crash of navd loses nothing."""
         if self.fh is None:

@@ -40,8 +40,5 @@ class Notifier:
     def watchdog(self) -> bool:
         return self.notify("WATCHDOG=1")
 
-    def status(self, text: str) -> bool:
-        return self.notify(f"STATUS={text}")
-
     def stopping(self) -> bool:
         return self.notify("STOPPING=1")
