@@ -93,6 +93,10 @@ def schedule(first: float, spacing: float) -> list[Fault]:
         [_f("modem", "drop_reply", 1.0)],
         [_f("modem", "drop_reply", 0.0)],
     )
+    # the modem falls online (a CONNECT) and must be escaped back; the pressure sensor
+    # loses power and answers "not initialised" until F48
+    add("modem online (CONNECT)", "modem", 30, [_f("modem", "online")], [])
+    add("pressure power blip", "pressure", 10, [_f("pressure", "power_blip")], [])
     add("log disk full 120 s", "log", 120, [], [])
     add("command spam 10 s", "zenoh", 10, [], [])
     return faults
@@ -233,7 +237,13 @@ def _sleep_until(t: float) -> None:
 
 def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa: ANN001
     files = sorted(copy.glob("navd-*.jsonl"))
-    lines = [json.loads(x) for f in files for x in f.read_text().splitlines() if x.startswith("{")]
+    lines, cut = [], 0
+    for f in files:
+        for x in f.read_text().splitlines():
+            try:
+                lines.append(json.loads(x))
+            except json.JSONDecodeError:
+                cut += 1  # the line being written when the disk filled up, cut short
     est = [o["t"] - t0 for o in lines if o.get("type") == "estimate"]
     health = [o for o in lines if o.get("type") == "health"]
     windows = [(f.start, f.end + 15.0) for f in faults]
@@ -269,7 +279,9 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
         f"inside them: min {min((r for _, r, i in per_min if i), default=math.nan):.2f}",
         f"- ranges received {pings.get('ranges', 0)}, fused {pings.get('fused', 0)}; pings sent "
         f"{pings.get('sent', 0)}, no reply {pings.get('no_reply', 0)}, timeouts "
-        f"{pings.get('timeouts', 0)}, errors {pings.get('errors', 0)}",
+        f"{pings.get('timeouts', 0)}, refused {pings.get('refused', 0)}, modem escapes "
+        f"{last.get('modem', {}).get('escapes', 0)}",
+        f"- log lines that do not parse (cut when the disk filled): {cut}",
         f"- RSS {rss0:.1f} MB after the first minute, {rss1:.1f} MB at the end "
         f"(growth {rss1 - rss0:+.1f} MB, target < 10); open files {fd0} and {fd1}",
         f"- exceptions on the daemon's stderr: {exceptions}",
