@@ -43,13 +43,27 @@ class Integrity:
         self.lost_std_m = lost_std_m
         self._ranges: deque[tuple[bool, float]] = deque(maxlen=window)
         self.reason = ""
+        # what assess() needs of the window, worked out when it changes (a range) rather
+        # than at every estimate
+        self._rejected = 0
+        self._nis: list[float] = []
+        self._nis_limit = math.inf
 
     def clear(self) -> None:
         """A position fix (GPS) or a restart: the ranges before it say nothing now."""
         self._ranges.clear()
+        self._summarise()
 
     def range(self, accepted: bool, nis: float) -> None:
         self._ranges.append((accepted, nis))
+        self._summarise()
+
+    def _summarise(self) -> None:
+        window = self._ranges
+        self._rejected = sum(1 for ok, _ in window if not ok)
+        self._nis = [v for ok, v in window if ok and math.isfinite(v)]
+        n = len(self._nis)
+        self._nis_limit = chi2_quantile(0.99, n) if n >= 3 else math.inf
 
     def assess(self, std_max_m: float) -> str:
         """The state, with ``reason`` saying why when it is not ``ok``."""
@@ -59,15 +73,15 @@ class Integrity:
             return LOST
         window = self._ranges
         full = len(window) == window.maxlen
-        rejected = sum(1 for ok, _ in window if not ok)
+        rejected = self._rejected
         if full and rejected == len(window):
             self.reason = f"the last {len(window)} ranges all refused"
             return LOST
         if std_max_m > self.degraded_std_m:
             self.reason = f"position std {std_max_m:.0f} m over {self.degraded_std_m:g} m"
             return DEGRADED
-        nis = [v for ok, v in window if ok and math.isfinite(v)]
-        if len(nis) >= 3 and sum(nis) > chi2_quantile(0.99, len(nis)):
+        nis = self._nis
+        if len(nis) >= 3 and sum(nis) > self._nis_limit:
             self.reason = f"ranges disagree with the covariance (NIS {sum(nis):.1f} in {len(nis)})"
             return DEGRADED
         if full and rejected > len(window) // 2:
