@@ -145,7 +145,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="navd", description="AUV navigation daemon and tools")
-    sub = p.add_subparsers(dest="cmd", required=True)
+    p.add_argument("--version", action="version", version=f"navd {_version()}")
+    sub = p.add_subparsers(dest="cmd", metavar="COMMAND")
 
     r = sub.add_parser("replay", help="run the navigation filter over a recorded log")
     r.add_argument(
@@ -207,8 +208,21 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("navd")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.cmd is None:  # no command: what there is to do, not an argparse complaint
+        parser.print_help()
+        return 2
     try:
         return args.func(args)
     except (ConfigError, LogError) as exc:

@@ -1,0 +1,7 @@
+"""``python -m navd``: the ``navd`` command line."""
+
+import sys
+
+from navd.cli import main
+
+sys.exit(main())
