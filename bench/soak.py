@@ -152,10 +152,10 @@ def _spam(port: int, seconds: float) -> dict[str, int]:
     return out
 
 
-def run(minutes: float, work: Path) -> str:
+def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
     d = work / "vehicle"
     d.mkdir(parents=True)
-    faults = schedule(first=240.0, spacing=40.0)
+    faults = schedule(first=240.0, spacing=spacing)
     scaled = [f for f in faults if f.end < minutes * 60 - 60]
     plan = []
     for f in scaled:
@@ -219,6 +219,10 @@ def run(minutes: float, work: Path) -> str:
                 spam = _spam(zport, f.end - f.start)
         _sleep_until(t0 + minutes * 60)
         samples["end"] = _rss_fds(navd.pid)
+        # what only this process saw, kept so that --summarise can report a kept run again
+        (work / "samples.json").write_text(
+            json.dumps({"samples": samples, "spam": spam, "t0": t0, "spacing": spacing})
+        )
         copy = work / "log"
         shutil.copytree(root / str(logdir).lstrip("/"), copy)
     finally:
@@ -296,6 +300,22 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
     return "\n".join(out)
 
 
+def summarise_kept(work: Path, minutes: float, spacing: float) -> str:
+    """The report of a run kept with ``--keep``, from its files.  What only the bench
+    process saw (RSS, open files, the spam's answers) comes from ``samples.json``,
+    which runs before that file existed lack."""
+    kept = work / "samples.json"
+    extra = json.loads(kept.read_text()) if kept.exists() else {}
+    faults = schedule(first=240.0, spacing=extra.get("spacing", spacing))
+    scaled = [f for f in faults if f.end < minutes * 60 - 60]
+    clock = json.loads((work / "vehicle" / "clock.json").read_text())
+    t0 = extra.get("t0", clock["t0_monotonic"])
+    samples = {k: tuple(v) for k, v in extra.get("samples", {}).items()}
+    return summarise(
+        work, work / "vehicle", work / "log", scaled, t0, samples, extra.get("spam", {}), minutes
+    )
+
+
 def _says(h: dict, words: tuple[str, ...]) -> bool:
     return any(any(w in p for w in words) for p in h.get("degraded", []))
 
@@ -305,12 +325,16 @@ def main() -> int:
     p.add_argument("--minutes", type=float, default=60.0)
     p.add_argument("--write", help="BENCHMARKS.md to update")
     p.add_argument("--keep", help="keep the run's files (log, configs, stderr) in this directory")
+    p.add_argument("--spacing", type=float, default=40.0, help="seconds between faults")
+    p.add_argument("--summarise", help="report a run kept with --keep in this directory again")
     args = p.parse_args()
-    if args.keep:
-        body = run(args.minutes, Path(args.keep))
+    if args.summarise:
+        body = summarise_kept(Path(args.summarise), args.minutes, args.spacing)
+    elif args.keep:
+        body = run(args.minutes, Path(args.keep), args.spacing)
     else:
         with tempfile.TemporaryDirectory(prefix="navd-soak-") as tmp:
-            body = run(args.minutes, Path(tmp))
+            body = run(args.minutes, Path(tmp), args.spacing)
     report(
         f"`python -m bench.soak --minutes {args.minutes:g}`\n\n{body}",
         args.write,

@@ -39,12 +39,7 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
         capture_output=True,
         text=True,
     )
-    live = {
-        o["t"]: o
-        for f in logs
-        for o in map(json.loads, f.read_text().splitlines())
-        if o.get("type") == "estimate"
-    }
+    live = {o["t"]: o for f in logs for o in _objects(f) if o.get("type") == "estimate"}
     replayed = {}
     if r.returncode == 0:
         replayed = {o["t"]: o for o in map(json.loads, out.read_text().splitlines())}
@@ -53,6 +48,20 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
         (abs(live[t][k] - replayed[t][k]) for t in common for k in _COMPARED), default=math.inf
     )
     return ReplayCheck(r.returncode, r.stderr, len(live), len(common), worst)
+
+
+def _objects(path: Path) -> list[dict]:
+    """The JSON objects of a log, without a line the daemon was writing when it was cut
+    short (a full disk, a kill): replay skips those too."""
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            o = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(o, dict):
+            out.append(o)
+    return out
 
 
 def free_port() -> int:
