@@ -67,7 +67,8 @@ class DeviceState:
     device_errors: int = 0  # the device answered with an error in place of a reading
     t_device_error: float | None = None
     last_device_error: str = ""
-    t_probe: float | None = None  # when the device was last asked who it is
+    t_probe: float | None = None  # since when the device has been asked who it is
+    t_probe_sent: float = -math.inf  # when it was last asked
     # what the device said of itself (firmware, serial number, calibration): in health
     info: dict[str, Any] = field(default_factory=dict)
     eeprom: dict[int, int] = field(default_factory=dict)
@@ -290,7 +291,7 @@ class Daemon:
                 # which unit is this: a single-byte 3DM-GX3-25 answers with its firmware;
                 # was its compass ever calibrated: its hard-iron offsets
                 st = self.devices["ahrs"]
-                st.t_probe = self.clock()
+                st.t_probe = st.t_probe_sent = self.clock()
                 st.info.clear()
                 st.eeprom.clear()
                 tr.write(ahrs.encode_firmware_probe())
@@ -479,6 +480,12 @@ class Daemon:
         if st is None or tr is None or not tr.health.connected or tr.on_open is None:
             return
         now = self.clock()
+        if "firmware" not in st.info and now - st.t_probe_sent > PROBE_WAIT_S:
+            # unanswered (a stalled or resetting unit): ask again until it says who it is
+            st.t_probe_sent = now
+            tr.write(ahrs.encode_firmware_probe())
+            if "hard_iron" not in st.info:
+                tr.write(st.decoder.request_hard_iron())
         last = max(tr.health.last_rx or -math.inf, st.t_probe or -math.inf, st.t_reset)
         if now - last < AHRS_RESET_S:
             return

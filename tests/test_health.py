@@ -235,6 +235,7 @@ def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: 
     opened: list[float] = []
     port.on_open = lambda tr: opened.append(clock.t)  # type: ignore[union-attr]
     port.health.last_rx = clock.t  # type: ignore[union-attr]
+    d.devices["ahrs"].info.update(firmware=1134, hard_iron=[0.0, 0.0, 0.0])  # it said who it is
 
     async def main() -> None:
         d._recover_ahrs()
@@ -249,3 +250,20 @@ def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: 
 
     asyncio.run(main())
     assert d.health()["devices"]["ahrs"]["resets"] == 1
+
+
+def test_an_unanswered_firmware_probe_is_asked_again(tmp_path: Path) -> None:
+    """A unit stalled when it was opened answers once it streams again: the probe is
+    repeated until it does, and health is ok again then."""
+    d, clock = _daemon(tmp_path)
+    d.devices["ahrs"].decoder = ahrs.AhrsDecoder()
+    port = d.devices["ahrs"].transport
+    port.on_open = lambda tr: None  # type: ignore[union-attr]
+    st = d.devices["ahrs"]
+    st.t_probe = st.t_probe_sent = clock.t
+    _navigate(d, clock, 4.0)
+    port.health.last_rx = clock.t  # type: ignore[union-attr]
+    d._recover_ahrs()
+    assert ahrs.encode_firmware_probe() in port.written  # type: ignore[union-attr]
+    d._on_record("ahrs")(ahrs.Firmware(clock.t, 1134))
+    assert not any("firmware probe" in p for p in d.health()["degraded"])
