@@ -153,6 +153,9 @@ class AhrsDecoder(FrameDecoder):
         return encode_read_eeprom(address)
 
     def request_hard_iron(self) -> bytes:
+        # a new read of all six supersedes reads never answered (a unit that was silent):
+        # left queued they would pair the next answers with the wrong addresses
+        self._eeprom.clear()
         return b"".join(self.request_eeprom(HARD_IRON_ADDR + 2 * i) for i in range(6))
 
     def _frame_length(self, buf: bytearray) -> int | None:

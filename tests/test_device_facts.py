@@ -535,3 +535,13 @@ def test_received_data_lines_do_not_confuse_the_parser() -> None:
     assert dec.stats.skipped_bytes == 0
     (rng,) = dec.feed(GOBY_RANGE + b"OK\r\n", 2.0)[:1]
     assert rng.range_m == 1499.6
+
+
+def test_gx3_a_new_hard_iron_read_supersedes_unanswered_ones() -> None:
+    dec = ahrs.AhrsDecoder()
+    dec.request_hard_iron()  # never answered (the unit was stalled)
+    dec.request_eeprom(0x0500)
+    dec.request_hard_iron()
+    word = bytes([0xE5, 0x3E, 0x80])
+    (w,) = dec.feed(word + (sum(word) & 0xFFFF).to_bytes(2, "big"), 1.0)
+    assert w.address == ahrs.HARD_IRON_ADDR
