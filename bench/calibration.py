@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in results:
         if "error" in r:
             lines.append(f"- seed {r['seed']}: {r['error']}")
-    report("\n".join(lines), args.write, "calibration", "Compass and speed calibration")
+    report("\n".join(lines), args.write, "bench-calibration", "Compass and speed calibration")
     return 0
 
 
