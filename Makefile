@@ -23,17 +23,17 @@ fuzz: $(STAMP)
 	done
 
 test: $(STAMP)
-	$(BIN)/ruff check navd drivers hil tests bench
+	$(BIN)/ruff check navd tests bench
 	$(BIN)/mypy
 	$(BIN)/pytest
 
 lint: $(STAMP)
-	$(BIN)/ruff check navd drivers hil tests bench
+	$(BIN)/ruff check navd tests bench
 	$(BIN)/mypy
 
 # The daemon on the emulated vehicle (about two minutes), watched live, then reported.
 demo: $(STAMP)
-	$(BIN)/python -m hil.demo
+	$(BIN)/python -m navd.hil.demo
 
 bench-accuracy: $(STAMP)
 	$(BIN)/python -m bench.accuracy --seeds 5 --write BENCHMARKS.md

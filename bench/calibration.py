@@ -27,11 +27,11 @@ from typing import Any
 import yaml
 
 from bench.common import report
-from hil.scenario import scenario_from_dict
-from hil.score import read_jsonl, score
-from hil.sim_cli import deep_merge, write_mission
-from hil.world import simulate
 from navd.filter.compass import deviation_deg
+from navd.hil.scenario import scenario_from_dict
+from navd.hil.score import read_jsonl, score
+from navd.hil.sim_cli import deep_merge, write_mission
+from navd.hil.world import simulate
 
 STEPS = ("as configured", "compass calibrated", "compass and speed calibrated")
 

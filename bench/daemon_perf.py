@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from bench.common import report
-from hil.bench_vehicle import BenchVehicle
+from navd.hil.bench_vehicle import BenchVehicle
 
 
 def _cpu_s(pid: int) -> float:

@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import report
-from drivers import ahrs, castle, gps, keller, modem
-from hil.emulators.ahrs import AhrsEmulator
-from hil.emulators.gps import GpsEmulator
+from navd.drivers import ahrs, castle, gps, keller, modem
+from navd.hil.emulators.ahrs import AhrsEmulator
+from navd.hil.emulators.gps import GpsEmulator
 
 N = 20_000
 

@@ -16,9 +16,9 @@ import time
 from pathlib import Path
 
 from bench.common import mode_config, report
-from hil.scenario import load_scenario
-from hil.sim_cli import write_mission
-from hil.world import simulate
+from navd.hil.scenario import load_scenario
+from navd.hil.sim_cli import write_mission
+from navd.hil.world import simulate
 
 
 def main() -> int:

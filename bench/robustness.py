@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
-from hil.scenario import scenario_from_dict
-from hil.score import Score, read_jsonl, score
-from hil.sim_cli import write_mission
-from hil.world import simulate
+from navd.hil.scenario import scenario_from_dict
+from navd.hil.score import Score, read_jsonl, score
+from navd.hil.sim_cli import write_mission
+from navd.hil.world import simulate
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5

@@ -22,10 +22,10 @@ from pathlib import Path
 
 from bench.accuracy import replay
 from bench.common import report
-from hil.scenario import Scenario, load_scenario
-from hil.score import read_jsonl, score
-from hil.sim_cli import write_mission
-from hil.world import simulate
+from navd.hil.scenario import Scenario, load_scenario
+from navd.hil.score import read_jsonl, score
+from navd.hil.sim_cli import write_mission
+from navd.hil.world import simulate
 
 
 def variants(sc: Scenario) -> list[tuple[str, Scenario]]:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.common import report
-from hil.bench_vehicle import BIN, free_port, replay_against_live
+from navd.hil.bench_vehicle import BIN, free_port, replay_against_live
 
 SCENARIO = "survey-1h"
 DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")

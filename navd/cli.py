@@ -9,11 +9,11 @@ import argparse
 import sys
 
 from navd.config import ConfigError, load_config
-from navd.mlog import LogError
+from navd.formats.mlog import LogError
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from navd.replay import replay
+    from navd.analysis.replay import replay
 
     cfg = load_config(args.config)
     replay(list(args.input), cfg, args.out, smooth=args.smooth, strict=args.strict)
@@ -21,7 +21,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from navd.report import make_report
+    from navd.analysis.report import make_report
 
     summary = make_report(args.output, args.out, truth=args.truth, measurements=args.log)
     print(summary)
@@ -50,9 +50,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import logging
     import signal
 
-    from navd.app import Daemon
     from navd.config import check_for_run
-    from navd.publish import Publisher
+    from navd.daemon.daemon import Daemon
+    from navd.daemon.publish import Publisher
 
     cfg = load_config(args.config)
     check_for_run(cfg)
@@ -81,7 +81,7 @@ def _cmd_watch(args: argparse.Namespace) -> int:
 def _cmd_capture(args: argparse.Namespace) -> int:
     import logging
 
-    from navd.capture import capture
+    from navd.daemon.capture import capture
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     path = capture(load_config(args.config), args.device, args.seconds, args.out)
@@ -93,8 +93,8 @@ def _cmd_capture(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from navd.calibrate import CalibrationError, fit, stretches, supports_offset
-    from navd.mlog import read_measurement_log
+    from navd.analysis.calibrate import CalibrationError, fit, stretches, supports_offset
+    from navd.formats.mlog import read_measurement_log
 
     cfg = load_config(args.config)
     nav = cfg.navigation

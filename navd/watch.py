@@ -16,7 +16,7 @@ from dataclasses import replace
 import zenoh
 
 from navd.config import Config
-from navd.publish import zenoh_config
+from navd.daemon.publish import zenoh_config
 
 
 def format_estimate(e: dict) -> str:

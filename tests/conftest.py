@@ -5,8 +5,8 @@ import os
 
 from hypothesis import settings
 
-from hil.scenario import load_scenario
-from hil.world import Mission, simulate
+from navd.hil.scenario import load_scenario
+from navd.hil.world import Mission, simulate
 
 # `make test` (and so CI) must give the same verdict on every run: the property tests
 # draw a fixed sequence of examples there.  `make fuzz` draws new ones on every run; a

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivers import ahrs, castle, gps, keller, modem
+from navd.drivers import ahrs, castle, gps, keller, modem
 from navd.records import Attitude, Gps, Pressure, Rpm
 
 # -- golden vectors -------------------------------------------------------------------
@@ -175,11 +175,11 @@ def test_modem_resyncs_after_garbage(garbage: bytes) -> None:
 def test_emulators_speak_the_golden_vectors(tmp_path) -> None:
     import asyncio
 
-    from hil.emulators import ahrs as ahrs_emu
-    from hil.emulators import castle as castle_emu
-    from hil.emulators import gps as gps_emu
-    from hil.emulators import keller as keller_emu
-    from hil.emulators import modem as modem_emu
+    from navd.hil.emulators import ahrs as ahrs_emu
+    from navd.hil.emulators import castle as castle_emu
+    from navd.hil.emulators import gps as gps_emu
+    from navd.hil.emulators import keller as keller_emu
+    from navd.hil.emulators import modem as modem_emu
 
     assert keller_emu._crc(b"\xfa\x30") == KELLER_INIT_250[2:]
     assert gps_emu.sentence("GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,") == (

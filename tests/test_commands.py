@@ -18,7 +18,7 @@ import pytest
 import zenoh
 
 from navd.config import ZenohConfig
-from navd.publish import (
+from navd.daemon.publish import (
     COMMAND_BURST,
     MAX_COMMAND_BYTES,
     Publisher,

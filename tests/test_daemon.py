@@ -16,11 +16,11 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from hil.bench_vehicle import BenchVehicle, replay_against_live
-from hil.score import read_jsonl
 from navd.config import load_config
-from navd.mlog import read_measurement_log
-from navd.publish import zenoh_config
+from navd.daemon.publish import zenoh_config
+from navd.formats.mlog import read_measurement_log
+from navd.hil.bench_vehicle import BenchVehicle, replay_against_live
+from navd.hil.score import read_jsonl
 
 
 class Mission:
@@ -144,7 +144,7 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
 
     # position against the simulator's truth, within the filter's own 3 sigma
     truth = {round(s["t"], 1): s for s in read_jsonl(mission_dir / "truth.jsonl")}
-    from hil.score import _ne_error
+    from navd.hil.score import _ne_error
 
     inside, n = 0, 0
     for _, e in m.estimates:

@@ -11,14 +11,14 @@ from pathlib import Path
 
 import pytest
 
-from drivers import ahrs, castle, gps, keller, modem
-from drivers.codec import DeviceError
-from hil.emulators.ahrs import AhrsEmulator
-from hil.emulators.castle import CastleEmulator
-from hil.emulators.keller import KellerEmulator
-from hil.emulators.modem import ModemEmulator
 from navd.config import ConfigError, config_from_dict
+from navd.drivers import ahrs, castle, gps, keller, modem
+from navd.drivers.codec import DeviceError
 from navd.filter.navigator import _gps_std
+from navd.hil.emulators.ahrs import AhrsEmulator
+from navd.hil.emulators.castle import CastleEmulator
+from navd.hil.emulators.keller import KellerEmulator
+from navd.hil.emulators.modem import ModemEmulator
 from navd.records import Pressure, Rpm
 
 
@@ -153,7 +153,7 @@ def test_keller_emulator_reports_its_status(tmp_path: Path) -> None:
 
 
 def _gga(quality: int) -> bytes:
-    from hil.emulators.gps import sentence
+    from navd.hil.emulators.gps import sentence
 
     return sentence(f"GPGGA,123519,4807.038,N,01131.000,E,{quality},08,0.9,545.4,M,46.9,M,,")
 
@@ -358,7 +358,7 @@ def test_the_emulated_modem_starts_online_and_demands_the_guard(tmp_path: Path) 
 
 
 def test_the_daemon_brings_an_online_modem_to_command_mode_and_pings(tmp_path: Path) -> None:
-    from drivers.transport import SerialTransport
+    from navd.drivers.transport import SerialTransport
 
     async def main() -> None:
         emu = ModemEmulator(tmp_path / "m", lambda t: (0.05, 75.0, 37.05, -80.66, 3.0))
@@ -426,7 +426,7 @@ def test_keller_power_blip_gives_exception_32_until_f48(tmp_path: Path) -> None:
 
 
 def test_keller_local_echo_is_dropped_not_counted(tmp_path: Path) -> None:
-    from drivers.transport import SerialTransport
+    from navd.drivers.transport import SerialTransport
 
     async def main() -> None:
         emu = KellerEmulator(tmp_path / "k", addr=1, local_echo=True)
@@ -484,7 +484,7 @@ def test_capture_records_a_device_as_navd_asks_it(tmp_path: Path) -> None:
     bytes that came back decode again (the procedure of docs/protocols.md)."""
     import threading
 
-    from navd.capture import capture, raw_frames
+    from navd.daemon.capture import capture, raw_frames
 
     loop = asyncio.new_event_loop()
     emu_ready = threading.Event()

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from conftest import mission
 
-from hil.score import _ne_error
-from hil.sim_cli import crew_config, deep_merge
+from navd.analysis.replay import run_navigator
 from navd.config import config_from_dict
-from navd.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
-from navd.mlog import MeasurementLog
-from navd.replay import run_navigator
+from navd.filter.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
+from navd.formats.mlog import MeasurementLog
+from navd.hil.score import _ne_error
+from navd.hil.sim_cli import crew_config, deep_merge
 
 
 @pytest.mark.parametrize("att", [(0.0, 0.0, 0.3), (0.1, -0.2, 2.5), (-0.3, 0.25, -1.2)])

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from navd.config import ConfigError, config_from_dict
 from navd.filter import Navigator
-from navd.mlog import Skipped, iter_lines
+from navd.formats.mlog import Skipped, iter_lines
 from navd.records import Record
 
 numbers = st.one_of(

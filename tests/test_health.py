@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from drivers import ahrs, castle, keller, modem
-from drivers.keller import KellerDecoder
-from drivers.transport import PortHealth
-from navd.app import Daemon, DeviceState
 from navd.config import config_from_dict
+from navd.daemon.daemon import Daemon, DeviceState
+from navd.drivers import ahrs, castle, keller, modem
+from navd.drivers.keller import KellerDecoder
+from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
 from navd.records import Attitude, Depth, Gps, Pressure, Rpm
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.runner import main
+from navd.hil.runner import main
 
 
 @pytest.mark.parametrize(

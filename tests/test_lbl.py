@@ -7,12 +7,12 @@ import dataclasses
 import pytest
 from conftest import mission
 
-from hil.score import score
-from hil.sim_cli import crew_config, deep_merge
+from navd.analysis.replay import run_navigator
 from navd.config import config_from_dict
-from navd.mlog import MeasurementLog
+from navd.formats.mlog import MeasurementLog
+from navd.hil.score import score
+from navd.hil.sim_cli import crew_config, deep_merge
 from navd.records import TravelTime
-from navd.replay import run_navigator
 
 
 def _run(name: str, seed: int, smooth: bool = False):

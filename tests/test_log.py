@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from navd.config import ConfigError, check_for_run, config_from_dict
-from navd.log import RecordLog
-from navd.mlog import read_measurement_log
+from navd.formats.log import RecordLog
+from navd.formats.mlog import read_measurement_log
 from navd.records import Gps, Heading
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from navd import geodesy
-from navd.lsfix import RangeTo, least_squares_fix
+from navd.filter.lsfix import RangeTo, least_squares_fix
 
 R = math.radians
 LAT, LON = R(48.15), R(-122.40)  # Port Susan, the seed's test site

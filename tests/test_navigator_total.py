@@ -152,7 +152,7 @@ def test_a_fix_from_collinear_beacons_is_none_or_finite(
 ) -> None:
     """Beacons on one line (the seed-003 two-transponder case): no fix, never an error."""
     from navd import geodesy
-    from navd.lsfix import RangeTo, least_squares_fix
+    from navd.filter.lsfix import RangeTo, least_squares_fix
 
     lat0, lon0 = math.radians(LAT0), math.radians(LON0)
     rs = []

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from drivers import gps, keller, modem
-from drivers.transport import SerialTransport
-from hil.emulators.modem import ModemEmulator
 from navd.config import config_from_dict
+from navd.drivers import gps, keller, modem
+from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
-from navd.mlog import MAX_LINE_CHARS, LogError, Skipped, iter_lines, read_measurement_log
+from navd.formats.mlog import MAX_LINE_CHARS, LogError, Skipped, iter_lines, read_measurement_log
+from navd.hil.emulators.modem import ModemEmulator
 from navd.records import Attitude, Gps, Pressure, Range, Rpm
 
 LAT0, LON0 = 37.05, -80.66
@@ -250,7 +250,7 @@ def test_a_giant_line_is_skipped_in_bounded_memory(tmp_path: Path) -> None:
 
 
 def test_replay_passes_over_an_empty_file_among_rotated_logs(tmp_path: Path) -> None:
-    from navd.replay import replay
+    from navd.analysis.replay import replay
 
     head = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T00:00:00Z"}\n'
     a = tmp_path / "navd-1.jsonl"

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from conftest import mission
 
-from hil.score import read_jsonl, score
-from hil.sim_cli import write_mission
+from navd.hil.score import read_jsonl, score
+from navd.hil.sim_cli import write_mission
 
 NAVD = [sys.executable, "-m", "navd.cli"]
 HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'

@@ -7,13 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from drivers import ahrs, castle, gps, keller, modem
-from drivers.transport import SerialTransport
-from hil.emulators.ahrs import AhrsEmulator
-from hil.emulators.castle import CastleEmulator
-from hil.emulators.gps import GpsEmulator
-from hil.emulators.keller import KellerEmulator
-from hil.emulators.modem import ModemEmulator
+from navd.drivers import ahrs, castle, gps, keller, modem
+from navd.drivers.transport import SerialTransport
+from navd.hil.emulators.ahrs import AhrsEmulator
+from navd.hil.emulators.castle import CastleEmulator
+from navd.hil.emulators.gps import GpsEmulator
+from navd.hil.emulators.keller import KellerEmulator
+from navd.hil.emulators.modem import ModemEmulator
 from navd.records import Gps, Pressure, Rpm
 
 
@@ -189,8 +189,8 @@ def test_modem_emulator_hears_the_world_channel(tmp_path: Path) -> None:
     """The deck box answers with the simulated boat's position after the true round trip."""
     from conftest import mission
 
-    from hil.link import modem_range_fn
-    from hil.world import simulate
+    from navd.hil.link import modem_range_fn
+    from navd.hil.world import simulate
 
     m = simulate(mission("claytor-2", 5).scenario, 5)  # a private copy: its channel is used
     ch = m.channel

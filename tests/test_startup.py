@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from navd.app import Daemon
 from navd.config import ConfigError, config_from_dict, load_config
-from navd.log import RecordLog
+from navd.daemon.daemon import Daemon
+from navd.formats.log import RecordLog
 
 
 def _check_config(tmp_path: Path, text: str) -> subprocess.CompletedProcess:

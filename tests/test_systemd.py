@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from navd.sdnotify import Notifier
+from navd.daemon.sdnotify import Notifier
 
 UNIT = Path(__file__).resolve().parent.parent / "systemd" / "navd.service"
 needs_systemd = pytest.mark.skipif(

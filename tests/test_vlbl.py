@@ -7,14 +7,14 @@ import dataclasses
 import pytest
 from conftest import mission
 
-from hil.score import score
-from hil.sim_cli import crew_config, deep_merge
 from navd import geodesy
+from navd.analysis.replay import run_navigator
 from navd.config import ConfigError, config_from_dict
-from navd.mlog import MeasurementLog
+from navd.filter.vlbl import NetRange, VirtualNet
+from navd.formats.mlog import MeasurementLog
+from navd.hil.score import score
+from navd.hil.sim_cli import crew_config, deep_merge
 from navd.records import Gps
-from navd.replay import run_navigator
-from navd.vlbl import NetRange, VirtualNet
 
 
 def _run(name: str, records=None):

@@ -8,9 +8,9 @@ import pytest
 from conftest import mission
 from geographiclib.geodesic import Geodesic
 
-from hil.scenario import list_scenarios, load_scenario
-from hil.sim_cli import crew_config
 from navd.config import ConfigError, config_from_dict
+from navd.hil.scenario import list_scenarios, load_scenario
+from navd.hil.sim_cli import crew_config
 from navd.records import Gps, Range
 
 G = Geodesic.WGS84
@@ -69,7 +69,7 @@ def test_antimeridian_scenario_crosses_the_line() -> None:
 
 
 def test_replies_to_reacquire_counts_from_the_first_rejection_to_the_next_accept() -> None:
-    from hil.score import replies_to_reacquire
+    from navd.hil.score import replies_to_reacquire
 
     def r(ok: bool, reason: str = "ok") -> dict:
         return {"accepted": ok, "reason": reason}

@@ -20,15 +20,16 @@ import numpy as np
 from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
-from navd.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter import compass
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import NavFilter, RangeDecision, RangeMeas
 from navd.filter.deadreckoning import DeadReckoner
+from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import Integrity
 from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
+from navd.filter.vlbl import NetRange, VirtualNet
 from navd.filter.vlblmode import VlblMode
 from navd.records import (
     MAX_LATE_S,
@@ -47,7 +48,6 @@ from navd.records import (
     Velocity,
     implausible,
 )
-from navd.vlbl import NetRange, VirtualNet
 
 _GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
 _GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired

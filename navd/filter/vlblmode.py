@@ -1,7 +1,7 @@
 """The ``vlbl`` mode: virtual LBL as the navigation solution (LaPointe 2006, seed 001).
 
 Between fixes the position is dead-reckoned (compass, RPM speed, no current) and
-its uncertainty grows; each range goes to the virtual net (navd/vlbl.py), and when
+its uncertainty grows; each range goes to the virtual net (navd/filter/vlbl.py), and when
 the net yields a fix the position and covariance are the fix's.  It is what
 seed 001 flies, selectable so that it can be compared with the range EKF on the
 same logs.
@@ -15,7 +15,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import Estimate, History, RangeDecision, RangeMeas
-from navd.lsfix import Fix
+from navd.filter.lsfix import Fix
 
 
 class VlblMode:

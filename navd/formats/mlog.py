@@ -15,7 +15,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO, Any
 
-from navd import jsonlines
+from navd.formats import jsonlines
 from navd.records import (
     MAX_LATE_S,
     TYPE_NAMES,

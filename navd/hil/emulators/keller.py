@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import struct
 
-from hil.emulators.base import Emulator
+from navd.hil.emulators.base import Emulator
 
 
 def _crc(data: bytes) -> bytes:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from functools import reduce
 
-from hil.emulators.base import Emulator
+from navd.hil.emulators.base import Emulator
 
 
 def sentence(body: str) -> bytes:

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import serial
 
-from drivers.codec import Decoder
+from navd.drivers.codec import Decoder
 
 log = logging.getLogger(__name__)
 

@@ -24,9 +24,9 @@ import numpy as np
 from geographiclib.geodesic import Geodesic
 from pyproj import Transformer
 
-from hil.scenario import Scenario
 from navd.acoustics import coppens
 from navd.filter.compass import deviation_deg
+from navd.hil.scenario import Scenario
 from navd.records import (
     Attitude,
     Depth,

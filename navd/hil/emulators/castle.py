@@ -10,7 +10,7 @@ answer).
 
 from __future__ import annotations
 
-from hil.emulators.base import Emulator
+from navd.hil.emulators.base import Emulator
 
 _RAW_FULL = 2042.0
 # the registers emulated, and their scale (value = raw / 2042 * scale); the others

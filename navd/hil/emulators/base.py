@@ -8,7 +8,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from hil.emulators.pty import PtyPort
+from navd.hil.emulators.pty import PtyPort
 
 
 @dataclass(slots=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from navd import geodesy
-from navd.mlog import read_measurement_log
+from navd.formats.mlog import read_measurement_log
 from navd.records import Gps
 
 _SURFACE_GAP_S = 5.0

@@ -14,7 +14,7 @@ import dataclasses
 from pathlib import Path
 
 from navd.config import Config, ConfigError
-from navd.jsonlines import DecodeError, loads
+from navd.formats.jsonlines import DecodeError, loads
 
 DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
 
@@ -41,7 +41,7 @@ def capture_config(cfg: Config, device: str, out_dir: str | Path) -> Config:
 
 def capture(cfg: Config, device: str, seconds: float, out_dir: str | Path) -> Path | None:
     """Run the capture; returns the log file written (None if the port never opened)."""
-    from navd.app import Daemon
+    from navd.daemon.daemon import Daemon
 
     daemon = Daemon(capture_config(cfg, device, out_dir))
 

@@ -28,16 +28,16 @@ from typing import Any
 
 import yaml
 
-from hil.emulators.ahrs import AhrsEmulator
-from hil.emulators.castle import CastleEmulator
-from hil.emulators.gps import GpsEmulator
-from hil.emulators.keller import KellerEmulator
-from hil.emulators.modem import ModemEmulator
-from hil.link import modem_range_fn
-from hil.scenario import load_scenario
-from hil.sim_cli import crew_config, deep_merge
-from hil.world import simulate
 from navd.config import ConfigError, config_from_dict
+from navd.hil.emulators.ahrs import AhrsEmulator
+from navd.hil.emulators.castle import CastleEmulator
+from navd.hil.emulators.gps import GpsEmulator
+from navd.hil.emulators.keller import KellerEmulator
+from navd.hil.emulators.modem import ModemEmulator
+from navd.hil.link import modem_range_fn
+from navd.hil.scenario import load_scenario
+from navd.hil.sim_cli import crew_config, deep_merge
+from navd.hil.world import simulate
 from navd.records import Depth, Gps, Heading, Rpm
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under

@@ -5,7 +5,7 @@ To fix the present position, every kept range's beacon is moved by the
 dead-reckoned displacement since that range (eq. 3.1-3.3: the virtual transponder
 is the real one translated by the vehicle's motion), and the ranges to these
 virtual transponders are solved as one LBL fix with the iterative least squares
-of seed 004 (navd/lsfix.py).  With one transponder the net is built in time; with
+of seed 004 (navd/filter/lsfix.py).  With one transponder the net is built in time; with
 several fixed transponders interrogated round robin it is the ordinary LBL fix
 with the vehicle's motion between pings taken out.  Moving beacons (a boat) work
 the same way, since each range keeps the beacon position it was measured to.
@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from navd import geodesy
-from navd.lsfix import Fix, RangeTo, least_squares_fix
+from navd.filter.lsfix import Fix, RangeTo, least_squares_fix
 
 
 @dataclass(frozen=True, slots=True)

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from navd.mlog import FORMAT, VERSION, record_to_json
+from navd.formats.mlog import FORMAT, VERSION, record_to_json
 from navd.records import Record
 
 _RETRY_AFTER_S = 10.0

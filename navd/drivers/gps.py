@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import pynmea2
 
-from drivers.codec import DecodeStats
+from navd.drivers.codec import DecodeStats
 from navd.records import Gps, implausible
 
 _MAX_LINE = 120  # NMEA allows 82 characters; anything much longer is garbage

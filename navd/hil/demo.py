@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hil.bench_vehicle import BIN, BenchVehicle
+from navd.hil.bench_vehicle import BIN, BenchVehicle
 
 
 def main() -> int:

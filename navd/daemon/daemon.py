@@ -1,6 +1,6 @@
 """``navd run``: the daemon the vehicle runs.
 
-One asyncio task per serial device (drivers/transport.py), a 10 Hz filter tick on
+One asyncio task per serial device (navd/drivers/transport.py), a 10 Hz filter tick on
 absolute monotonic deadlines, a ping scheduler (``ATRX`` every ``ping_interval_s``,
 never two outstanding, a reply timeout), a 1 Hz health task, zenoh publishing and
 the crash-safe log.  Every measurement is stamped with the monotonic time its bytes
@@ -21,15 +21,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivers import ahrs, castle, gps, keller, modem
-from drivers.codec import DecodeStats, DeviceError
-from drivers.transport import SerialTransport
 from navd.config import Config
+from navd.daemon.health import RECENT_S, Vitals
+from navd.daemon.sdnotify import Notifier
+from navd.drivers import ahrs, castle, gps, keller, modem
+from navd.drivers.codec import DecodeStats, DeviceError
+from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
-from navd.health import RECENT_S, Vitals
-from navd.log import RecordLog
+from navd.formats.log import RecordLog
 from navd.records import Gps, Pressure, Range, Reset, Rpm, SetBeacon
-from navd.sdnotify import Notifier
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
@@ -379,7 +379,7 @@ class Daemon:
         self.modem_session.lost(self.clock())
 
     async def _modem_keeper(self) -> None:
-        """Bring the modem into command mode and keep it there (drivers.modem.ModemSession)."""
+        """Bring the modem into command mode and keep it there (navd.drivers.modem.ModemSession)."""
         while True:
             await asyncio.sleep(0.1)
             tr = self.devices["modem"].transport

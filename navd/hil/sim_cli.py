@@ -17,10 +17,10 @@ from typing import Any
 
 import yaml
 
-from hil.scenario import Scenario, list_scenarios, load_scenario
-from hil.world import Mission, simulate
 from navd.config import ConfigError, config_from_dict
-from navd.mlog import MeasurementWriter
+from navd.formats.mlog import MeasurementWriter
+from navd.hil.scenario import Scenario, list_scenarios, load_scenario
+from navd.hil.world import Mission, simulate
 
 
 def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:

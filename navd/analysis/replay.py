@@ -11,10 +11,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from navd import jsonlines
 from navd.config import Config, ConfigError
 from navd.filter import Navigator
-from navd.mlog import MeasurementLog, Skipped, read_measurement_log
+from navd.formats import jsonlines
+from navd.formats.mlog import MeasurementLog, Skipped, read_measurement_log
 
 MAX_REPORTED_SKIPS = 20
 

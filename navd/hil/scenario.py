@@ -1,4 +1,4 @@
-"""Scenario files (``hil/scenarios/*.yaml``): the world a simulated mission happens in.
+"""Scenario files (``navd/hil/scenarios/*.yaml``): the world a simulated mission happens in.
 
 Validated like the navd config (same loader): an unknown key or a bad value is a
 one-line error naming it.  ``config`` is a navd configuration fragment written
@@ -142,7 +142,7 @@ class Scenario:
 
 
 def scenario_dir() -> Path:
-    return Path(str(resources.files("hil") / "scenarios"))
+    return Path(str(resources.files("navd.hil") / "scenarios"))
 
 
 def list_scenarios() -> list[str]:

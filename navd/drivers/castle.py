@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-from drivers.codec import DecodeStats, DeviceError
+from navd.drivers.codec import DecodeStats, DeviceError
 from navd.records import Rpm
 
 REG_VOLTAGE = 0

@@ -19,7 +19,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from hil.emulators.base import Emulator
+from navd.hil.emulators.base import Emulator
 
 GUARD_S = 1.0  # the silence the modem demands before +++
 RangeFn = Callable[[float], tuple[float, float, float | None, float | None, float | None] | None]

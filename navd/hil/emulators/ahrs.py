@@ -13,7 +13,7 @@ import math
 import struct
 import time
 
-from hil.emulators.base import Emulator
+from navd.hil.emulators.base import Emulator
 
 REFUSED = bytes([0x21, 0x00, 0x21])  # wrong confirmation bytes
 

@@ -29,7 +29,7 @@ import math
 import re
 from dataclasses import dataclass, replace
 
-from drivers.codec import DecodeStats
+from navd.drivers.codec import DecodeStats
 
 _RANGE = re.compile(rb"range\s*(?:\d+\s*to\s*(\d+))?\s*[:=]\s*([0-9]+(?:\.[0-9]*)?)\s*m", re.I)
 _ROUND_TRIP = re.compile(rb"round-?trip\s*[:=]?\s*([0-9]+(?:\.[0-9]*)?)\s*ms", re.I)

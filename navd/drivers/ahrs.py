@@ -34,7 +34,7 @@ import struct
 from collections import deque
 from dataclasses import dataclass
 
-from drivers.codec import DeviceError, FrameDecoder
+from navd.drivers.codec import DeviceError, FrameDecoder
 from navd.records import Attitude
 
 CMD_EULER = 0xCE

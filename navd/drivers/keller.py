@@ -25,7 +25,7 @@ import struct
 from collections import deque
 from dataclasses import dataclass
 
-from drivers.codec import DeviceError, FrameDecoder
+from navd.drivers.codec import DeviceError, FrameDecoder
 from navd.records import Pressure, implausible
 
 F_INIT = 48

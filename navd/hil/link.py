@@ -1,17 +1,17 @@
 """Driving the device emulators from the world simulator in real time.
 
 Mission time is ``clock() - t0``; each emulator reads the world at that time.  The
-modem's acoustic link lives here; ``hil/runner.py`` moves the other emulators along
+modem's acoustic link lives here; ``navd/hil/runner.py`` moves the other emulators along
 the mission.
 """
 
 from __future__ import annotations
 
-from hil.world import Mission
+from navd.hil.world import Mission
 
 
 def modem_range_fn(mission: Mission, t0: float):
-    """A ``range_to`` for :class:`hil.emulators.modem.ModemEmulator` from the mission's channel."""
+    """A ``range_to`` for the modem emulator (ModemEmulator) from the mission's channel."""
 
     def range_to(
         t_mono: float,

@@ -1,0 +1,1 @@
+"""After the mission: replay, report, calibration."""
