@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
+from navd.analysis.score import Score, read_jsonl, score
 from navd.hil.scenario import list_scenarios, load_scenario
-from navd.hil.score import Score, read_jsonl, score
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 
@@ -47,7 +47,7 @@ def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
 
 def dvl_errors(mission_dir: Path, truth: list[dict]) -> tuple[float, float, float]:
     """(distance run, actual DVL dead-reckoning error, predicted error) at surfacing."""
-    from navd.hil.score import _ne_error
+    from navd.analysis.score import _ne_error
 
     out = read_jsonl(mission_dir / "out-default.jsonl")
     by_t = {round(s["t"], 3): s for s in truth}

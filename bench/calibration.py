@@ -27,9 +27,9 @@ from typing import Any
 import yaml
 
 from bench.common import report
+from navd.analysis.score import read_jsonl, score
 from navd.filter.compass import deviation_deg
 from navd.hil.scenario import scenario_from_dict
-from navd.hil.score import read_jsonl, score
 from navd.hil.sim_cli import deep_merge, write_mission
 from navd.hil.world import simulate
 

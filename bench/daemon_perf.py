@@ -8,7 +8,6 @@ CPU time and peak RSS from /proc and its own health (tick lateness over the last
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -17,6 +16,7 @@ import time
 from pathlib import Path
 
 from bench.common import report
+from navd.formats import jsonlines
 from navd.hil.bench_vehicle import BenchVehicle
 
 
@@ -55,7 +55,7 @@ def main() -> int:
                     health = line
         if health is None:
             raise SystemExit("bench-daemon: the daemon logged no health")
-        h = json.loads(health)
+        h = jsonlines.loads(health)
     tl, pl = h["tick_lateness_ms"], h["publish_latency_ms"]
     body = "\n".join(
         [

@@ -8,7 +8,6 @@ parsing the log, filtering, writing the output), best of three.
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 import tempfile
@@ -16,6 +15,7 @@ import time
 from pathlib import Path
 
 from bench.common import mode_config, report
+from navd.formats import jsonlines
 from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -51,7 +51,7 @@ def main() -> int:
                 t0 = time.perf_counter()
                 subprocess.run(cmd, check=True, capture_output=True)
                 best = min(best, time.perf_counter() - t0)
-            out = [json.loads(x) for x in (d / "out.jsonl").open()]
+            out = jsonlines.read(d / "out.jsonl")
             steps = sum(1 for o in out if o["type"] == "estimate")
             ranges = sum(1 for o in out if o["type"] == "range")
             label = mode + (" + RTS smoother" if smooth else "")

@@ -29,8 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
+from navd.analysis.score import Score, read_jsonl, score
 from navd.hil.scenario import scenario_from_dict
-from navd.hil.score import Score, read_jsonl, score
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 from bench.accuracy import replay
 from bench.common import report
+from navd.analysis.score import read_jsonl, score
 from navd.hil.scenario import Scenario, load_scenario
-from navd.hil.score import read_jsonl, score
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 

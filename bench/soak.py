@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.common import report
+from navd.formats import jsonlines
 from navd.hil.bench_vehicle import BIN, free_port, replay_against_live
 
 SCENARIO = "survey-1h"
@@ -136,14 +137,14 @@ def _spam(port: int, seconds: float) -> dict[str, int]:
             if k % 2
             else (
                 "cmd/beacon",
-                json.dumps({"name": "b" * 100 + str(k), "lat": 1, "lon": 1}).encode(),
+                jsonlines.dumps({"name": "b" * 100 + str(k), "lat": 1, "lon": 1}),
             )
         )
         replies = [r for r in s.get(f"auv/sim690s/nav/{key}", payload=payload, timeout=1.0) if r.ok]
         out["sent"] += 1
         if not replies:
             out["unanswered"] += 1
-        elif (ans := replies[0].ok) is not None and json.loads(ans.payload.to_bytes())["ok"]:
+        elif (ans := replies[0].ok) is not None and jsonlines.loads(ans.payload.to_bytes())["ok"]:
             out["ok"] += 1
         else:
             out["refused"] += 1
@@ -160,7 +161,7 @@ def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
     plan = []
     for f in scaled:
         plan += [{"t": f.start, **a} for a in f.on] + [{"t": f.end, **a} for a in f.off]
-    (work / "faults.yaml").write_text(json.dumps(plan))
+    (work / "faults.yaml").write_bytes(jsonlines.dumps(plan))
     zport = free_port()
     hil_err = (work / "navd-hil.stderr").open("w")
     hil = subprocess.Popen(
@@ -182,7 +183,7 @@ def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
             raise RuntimeError((work / "navd-hil.stderr").read_text())
         time.sleep(0.2)
     time.sleep(1.0)  # the ports are served once the banner is out; give it that moment
-    t0 = json.loads((d / "clock.json").read_text())["t0_monotonic"]
+    t0 = jsonlines.loads((d / "clock.json").read_bytes())["t0_monotonic"]
     logdir = d / "log"
     logdir.mkdir()
     stderr = (work / "navd.stderr").open("w")
@@ -220,8 +221,8 @@ def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
         _sleep_until(t0 + minutes * 60)
         samples["end"] = _rss_fds(navd.pid)
         # what only this process saw, kept so that --summarise can report a kept run again
-        (work / "samples.json").write_text(
-            json.dumps({"samples": samples, "spam": spam, "t0": t0, "spacing": spacing})
+        (work / "samples.json").write_bytes(
+            jsonlines.dumps({"samples": samples, "spam": spam, "t0": t0, "spacing": spacing})
         )
         copy = work / "log"
         shutil.copytree(root / str(logdir).lstrip("/"), copy)
@@ -245,8 +246,8 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
     for f in files:
         for x in f.read_text().splitlines():
             try:
-                lines.append(json.loads(x))
-            except json.JSONDecodeError:
+                lines.append(jsonlines.loads(x))
+            except jsonlines.DecodeError:
                 cut += 1  # the line being written when the disk filled up, cut short
     est = [o["t"] - t0 for o in lines if o.get("type") == "estimate"]
     health = [o for o in lines if o.get("type") == "health"]
@@ -263,10 +264,10 @@ def summarise(work, d, copy, faults, t0, samples, spam, minutes) -> str:  # noqa
     rows = []
     for f in faults:
         words = SAYS.get(f.device, ())
-        said = [h for h in health if f.start <= h["t_mono"] - t0 and _says(h, words)]
+        said = [h for h in health if f.start <= h["t"] - t0 and _says(h, words)]
         t_said = said[0]["t_mono"] - t0 - f.start if said else None
-        after = [h for h in health if h["t_mono"] - t0 >= f.end]
-        t_ok = next((h["t_mono"] - t0 - f.end for h in after if not _says(h, words)), None)
+        after = [h for h in health if h["t"] - t0 >= f.end]
+        t_ok = next((h["t"] - t0 - f.end for h in after if not _says(h, words)), None)
         late = t_said is None or t_said > f.end - f.start + 5
         said_s = "not said" if late else f"{t_said:.0f} s"
         ok_s = "-" if t_ok is None else f"{t_ok:.0f} s"
@@ -305,10 +306,10 @@ def summarise_kept(work: Path, minutes: float, spacing: float) -> str:
     process saw (RSS, open files, the spam's answers) comes from ``samples.json``,
     which runs before that file existed lack."""
     kept = work / "samples.json"
-    extra = json.loads(kept.read_text()) if kept.exists() else {}
+    extra = jsonlines.loads(kept.read_bytes()) if kept.exists() else {}
     faults = schedule(first=240.0, spacing=extra.get("spacing", spacing))
     scaled = [f for f in faults if f.end < minutes * 60 - 60]
-    clock = json.loads((work / "vehicle" / "clock.json").read_text())
+    clock = jsonlines.loads((work / "vehicle" / "clock.json").read_bytes())
     t0 = extra.get("t0", clock["t0_monotonic"])
     samples = {k: tuple(v) for k, v in extra.get("samples", {}).items()}
     return summarise(

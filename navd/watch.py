@@ -8,7 +8,6 @@ samples if the printer falls behind.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from dataclasses import replace
@@ -17,6 +16,7 @@ import zenoh
 
 from navd.config import Config
 from navd.daemon.publish import zenoh_config
+from navd.formats import jsonlines
 
 
 def format_estimate(e: dict) -> str:
@@ -42,13 +42,13 @@ def watch(cfg: Config, count: int | None, seconds: float | None, every: float) -
         while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
             got = False
             while (s := rng_sub.try_recv()) is not None:
-                r = json.loads(s.payload.to_bytes())
+                r = jsonlines.loads(s.payload.to_bytes())
                 verdict = "accepted" if r.get("accepted") else f"rejected ({r.get('reason')})"
                 print(f"range {r.get('range_m', float('nan')):.1f} m {verdict}", flush=True)
             while (s := est_sub.try_recv()) is not None:
                 got = True
                 n += 1
-                e = json.loads(s.payload.to_bytes())
+                e = jsonlines.loads(s.payload.to_bytes())
                 now = time.monotonic()
                 if every <= 0 or now - last_print >= every:
                     print(format_estimate(e), flush=True)

@@ -16,11 +16,11 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from navd.analysis.score import read_jsonl
 from navd.config import load_config
 from navd.daemon.publish import zenoh_config
 from navd.formats.mlog import read_measurement_log
 from navd.hil.bench_vehicle import BenchVehicle, replay_against_live
-from navd.hil.score import read_jsonl
 
 
 class Mission:
@@ -144,13 +144,13 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
 
     # position against the simulator's truth, within the filter's own 3 sigma
     truth = {round(s["t"], 1): s for s in read_jsonl(mission_dir / "truth.jsonl")}
-    from navd.hil.score import _ne_error
+    from navd.analysis.score import _ne_error
 
     inside, n = 0, 0
     for _, e in m.estimates:
         if e["mode"] != "submerged":
             continue
-        tr = truth.get(round(e["t_mono"] - m.t0, 1))
+        tr = truth.get(round(e["t"] - m.t0, 1))
         if tr is None:
             continue
         dn, de = _ne_error(e["lat"], e["lon"], tr["lat"], tr["lon"])

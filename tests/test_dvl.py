@@ -9,10 +9,10 @@ import pytest
 from conftest import mission
 
 from navd.analysis.replay import run_navigator
+from navd.analysis.score import _ne_error
 from navd.config import config_from_dict
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
 from navd.formats.mlog import MeasurementLog
-from navd.hil.score import _ne_error
 from navd.hil.sim_cli import crew_config, deep_merge
 
 

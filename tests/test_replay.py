@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from conftest import mission
 
-from navd.hil.score import read_jsonl, score
+from navd.analysis.score import read_jsonl, score
 from navd.hil.sim_cli import write_mission
 
 NAVD = [sys.executable, "-m", "navd.cli"]

@@ -69,7 +69,7 @@ def test_antimeridian_scenario_crosses_the_line() -> None:
 
 
 def test_replies_to_reacquire_counts_from_the_first_rejection_to_the_next_accept() -> None:
-    from navd.hil.score import replies_to_reacquire
+    from navd.analysis.score import replies_to_reacquire
 
     def r(ok: bool, reason: str = "ok") -> dict:
         return {"accepted": ok, "reason": reason}

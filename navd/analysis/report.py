@@ -7,25 +7,16 @@ are drawn on a local metric grid (east/north metres from the first estimate).
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
-from typing import Any
 
 from navd import geodesy
+from navd.analysis.score import score, surfacing_error_gps
+from navd.formats import jsonlines
 from navd.formats.mlog import read_measurement_log
 from navd.records import Gps
+from navd.schema import outputs_of
 
-_SURFACE_GAP_S = 5.0
-
-
-def _read_jsonl(path: str | Path) -> list[dict[str, Any]]:
-    out = []
-    with open(path, encoding="utf-8") as fh:
-        for line in fh:
-            if line.strip():
-                out.append(json.loads(line))
-    return out
 
 
 class _Grid:
@@ -39,24 +30,6 @@ class _Grid:
         return e, n
 
 
-def _surfacing_error(est: list[dict], fixes: list[Gps]) -> tuple[float, float] | None:
-    """Distance from the last submerged estimate to the first GPS fix after surfacing."""
-    last_sub = None
-    for e in est:
-        if e["mode"] == "submerged":
-            last_sub = e
-    if last_sub is None:
-        return None
-    after = [f for f in fixes if f.t > last_sub["t"] and f.lat is not None]
-    if not after:
-        return None
-    f = after[0]
-    if f.lat is None or f.lon is None:
-        return None
-    g = _Grid(last_sub["lat"], last_sub["lon"])
-    return math.hypot(*g.en(f.lat, f.lon)), f.t - last_sub["t"]
-
-
 def make_report(
     output: str | Path,
     out_dir: str | Path,
@@ -68,9 +41,7 @@ def make_report(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = _read_jsonl(output)
-    est = [r for r in rows if r.get("type") == "estimate"]
-    rng = [r for r in rows if r.get("type") == "range"]
+    est, rng = outputs_of(jsonlines.read(output))
     if not est:
         raise ValueError(f"{output}: no estimates to report")
     out = Path(out_dir)
@@ -79,7 +50,7 @@ def make_report(
     fixes: list[Gps] = []
     if measurements:
         fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
-    tru = _read_jsonl(truth) if truth else []
+    tru = jsonlines.read(truth) if truth else []
 
     # -- track ---------------------------------------------------------------------
     fig, ax = plt.subplots(figsize=(8, 8))
@@ -179,10 +150,16 @@ def make_report(
         lines.append(
             "rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
         )
-    surf = _surfacing_error(est, fixes)
+    surf = surfacing_error_gps(est, fixes)
     if surf is not None:
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
+        )
+    if tru:
+        sc = score([*est, *rng], tru)
+        lines.append(
+            f"against the truth, submerged: RMS {sc.rms_m:.1f} m, at surfacing "
+            f"{sc.surfacing_m:.1f} m, truth inside the 95 % ellipse {sc.inside95:.0%}"
         )
     last = est[-1]
     lines.append(

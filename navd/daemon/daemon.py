@@ -30,6 +30,7 @@ from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
 from navd.records import Gps, Pressure, Range, Reset, Rpm, SetBeacon
+from navd.schema import DeviceHealth, Health, to_dict
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
@@ -178,7 +179,6 @@ class Daemon:
 
     def _publish_estimate(self, est: dict[str, Any]) -> None:
         body = dict(est)
-        body["t_mono"] = body.pop("t")
         body["t_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
         self.latest = body
         self.vitals.estimate(self.clock())
@@ -467,7 +467,7 @@ class Daemon:
                 self._ping_lost()
             self._recover_ahrs()
             h = self.health()
-            self.rlog.output({"type": "health", **h})
+            self.rlog.output(h)
             if self.pub is not None:
                 self.pub.put("health", h)
 
@@ -521,27 +521,25 @@ class Daemon:
             hl = st.transport.health if st.transport else None
             stats = st.decoder.stats
             rate = sum(1 for x in st.recent if now - x <= 5.0) / 5.0
-            devices[name] = {
-                "connected": bool(hl and hl.connected),
-                "last_rx_age_s": None
-                if not hl or hl.last_rx is None
-                else round(now - hl.last_rx, 3),
-                "rate_hz": rate,
-                "records": st.records,
-                "bad_checksum": stats.bad_checksum,
-                "bad_frame": stats.bad_frame,
-                "skipped_bytes": stats.skipped_bytes,
-                "reconnects": hl.reconnects if hl else 0,
-                "opens": hl.opens if hl else 0,
-                "read_errors": hl.read_errors if hl else 0,
-                "write_errors": hl.write_errors if hl else 0,
-                "last_error": hl.last_error if hl else "",
-                "device_errors": st.device_errors,
-                "resets": st.resets,
-                "last_device_error": st.last_device_error,
-                **st.info,
-                "internal_errors": dict(hl.internal_errors) if hl else {},
-            }
+            devices[name] = DeviceHealth(
+                connected=bool(hl and hl.connected),
+                last_rx_age_s=None if not hl or hl.last_rx is None else round(now - hl.last_rx, 3),
+                rate_hz=rate,
+                records=st.records,
+                bad_checksum=stats.bad_checksum,
+                bad_frame=stats.bad_frame,
+                skipped_bytes=stats.skipped_bytes,
+                reconnects=hl.reconnects if hl else 0,
+                opens=hl.opens if hl else 0,
+                read_errors=hl.read_errors if hl else 0,
+                write_errors=hl.write_errors if hl else 0,
+                last_error=hl.last_error if hl else "",
+                device_errors=st.device_errors,
+                resets=st.resets,
+                last_device_error=st.last_device_error,
+                info=dict(st.info),
+                internal_errors=dict(hl.internal_errors) if hl else {},
+            )
         lat = list(self.tick_lateness)
         est = self.latest or {}
         mode = est.get("mode", "waiting_for_gps")
@@ -553,7 +551,7 @@ class Daemon:
         integrity = est.get("integrity", "lost")
         if integrity != "ok" and self.nav.filter.initialised:
             degraded.append(f"integrity {integrity}: {est.get('integrity_reason', '')}")
-        degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv["connected"]]
+        degraded += [f"{n} disconnected" for n, dv in devices.items() if not dv.connected]
         for n, st in self.devices.items():
             bad, skipped = self._recent_bad(st, now)
             if bad >= CORRUPT_FRAMES or skipped >= CORRUPT_BYTES:
@@ -561,18 +559,16 @@ class Daemon:
                     f"{n}: {bad} corrupt frames, {skipped} bytes skipped in {CORRUPT_WINDOW_S:g} s"
                 )
             expected = self._expected_rate(n)
-            age = devices[n]["last_rx_age_s"]
+            age = devices[n].last_rx_age_s
             if expected is not None and age is not None and age > SILENT_S:
                 degraded.append(f"{n}: silent for {age:.0f} s")
-            if expected is not None and devices[n]["rate_hz"] > 2.0 * expected + 1.0:
-                degraded.append(
-                    f"{n}: {devices[n]['rate_hz']:.0f} records/s, {expected:g} expected"
-                )
+            if expected is not None and devices[n].rate_hz > 2.0 * expected + 1.0:
+                degraded.append(f"{n}: {devices[n].rate_hz:.0f} records/s, {expected:g} expected")
             if (
                 st.t_probe is not None
                 and "firmware" not in st.info
                 and now - st.t_probe > PROBE_WAIT_S
-                and devices[n]["connected"]
+                and devices[n].connected
             ):
                 degraded.append(
                     f"{n}: no answer to the firmware probe: not a single-byte protocol unit?"
@@ -596,59 +592,61 @@ class Daemon:
             degraded.append("log")
         if self.publisher_factory is not None and self.pub is None:
             degraded.append(f"zenoh: not open ({self.zenoh_error or 'opening'}), retrying")
-        return {
-            "t_mono": now,
-            "mode": mode,
-            "integrity": integrity if self.nav.filter.initialised else "lost",
-            "ok": not degraded,
-            "degraded": degraded,
-            "estimates_per_s": self.vitals.estimates_per_s(now),
-            "input_age_s": {k: None if v is None else round(v, 3) for k, v in ages.items()},
-            "last_range_accepted_age_s": None
-            if self.vitals.t_range_accepted is None
-            else round(now - self.vitals.t_range_accepted, 3),
-            "devices": devices,
-            "pings": {**self.pings, "last": list(self.vitals.pings)},
-            "modem": {
-                "mode": self.modem_session.mode,
-                "ready": self.modem_session.ready,
-                "escapes": self.modem_session.escapes,
-            },
-            "filter": dict(self.nav.counters),
-            "ticks": self.ticks,
-            "tick_overruns": self.overruns,
-            "tick_lateness_ms": {
-                "p50": _ms(_percentile(lat, 0.5)),
-                "p99": _ms(_percentile(lat, 0.99)),
-                "max": _ms(max(lat) if lat else None),
-            },
-            # from the tick's deadline to the estimate handed to zenoh
-            "publish_latency_ms": {
-                "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
-                "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
-            },
-            "log": {
-                "file": str(self.rlog.path) if self.rlog.path else None,
-                "ok": not (self.rlog.degraded and self.rlog.errors),
-                "lines": self.rlog.lines,
-                "errors": self.rlog.errors,
-                "dropped": self.rlog.dropped,
-                "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
-                "files_removed": self.rlog.removed_files,
-                "last_error": self.rlog.last_error,
-            },
-            "zenoh": {"open": False, "error": self.zenoh_error}
-            if self.pub is None
-            else {
-                "open": True,
-                "errors": self.pub.errors,
-                "commands": dict(self.pub.commands),
-            },
-            "temperature_c": self.temperature_c,
-            # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
-            "gps_utc": self.gps_utc.isoformat() if self.gps_utc else None,
-            "esc": dict(self.esc),
-        }
+        return to_dict(
+            Health(
+                t=now,
+                mode=mode,
+                integrity=integrity if self.nav.filter.initialised else "lost",
+                ok=not degraded,
+                degraded=degraded,
+                estimates_per_s=self.vitals.estimates_per_s(now),
+                input_age_s={k: None if v is None else round(v, 3) for k, v in ages.items()},
+                last_range_accepted_age_s=None
+                if self.vitals.t_range_accepted is None
+                else round(now - self.vitals.t_range_accepted, 3),
+                devices=devices,
+                pings={**self.pings, "last": list(self.vitals.pings)},
+                modem={
+                    "mode": self.modem_session.mode,
+                    "ready": self.modem_session.ready,
+                    "escapes": self.modem_session.escapes,
+                },
+                filter=dict(self.nav.counters),
+                ticks=self.ticks,
+                tick_overruns=self.overruns,
+                tick_lateness_ms={
+                    "p50": _ms(_percentile(lat, 0.5)),
+                    "p99": _ms(_percentile(lat, 0.99)),
+                    "max": _ms(max(lat) if lat else None),
+                },
+                # from the tick's deadline to the estimate handed to zenoh
+                publish_latency_ms={
+                    "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
+                    "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
+                },
+                log={
+                    "file": str(self.rlog.path) if self.rlog.path else None,
+                    "ok": not (self.rlog.degraded and self.rlog.errors),
+                    "lines": self.rlog.lines,
+                    "errors": self.rlog.errors,
+                    "dropped": self.rlog.dropped,
+                    "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
+                    "files_removed": self.rlog.removed_files,
+                    "last_error": self.rlog.last_error,
+                },
+                zenoh={"open": False, "error": self.zenoh_error}
+                if self.pub is None
+                else {
+                    "open": True,
+                    "errors": self.pub.errors,
+                    "commands": dict(self.pub.commands),
+                },
+                temperature_c=self.temperature_c,
+                # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
+                gps_utc=self.gps_utc.isoformat() if self.gps_utc else None,
+                esc=dict(self.esc),
+            )
+        )
 
     async def run(self, stop: asyncio.Event) -> None:
         loop = asyncio.get_running_loop()

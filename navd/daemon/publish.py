@@ -29,8 +29,9 @@ from typing import Any
 import zenoh
 
 from navd.config import ZenohConfig
+from navd.formats import jsonlines
+from navd.schema import SCHEMA_VERSION
 
-SCHEMA_VERSION = 1
 _COMMAND_TIMEOUT_S = 2.0
 _JSON = zenoh.Encoding.APPLICATION_JSON
 
@@ -117,7 +118,7 @@ def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], str | None]) 
     if len(raw) > MAX_COMMAND_BYTES:
         return f"payload longer than {MAX_COMMAND_BYTES} bytes"
     try:
-        body = json.loads(raw or b"{}")
+        body = jsonlines.loads(raw or b"{}")
     except (ValueError, RecursionError):  # bad JSON, bad UTF-8, nesting too deep
         return "payload must be a JSON object"
     if not isinstance(body, dict):
@@ -164,11 +165,7 @@ class Publisher:
 
     def put(self, kind: str, body: dict[str, Any]) -> bytes:
         self.seq[kind] += 1
-        payload = json.dumps(
-            {"schema": SCHEMA_VERSION, "seq": self.seq[kind], **body},
-            separators=(",", ":"),
-            allow_nan=False,
-        ).encode()
+        payload = jsonlines.dumps({"schema": SCHEMA_VERSION, "seq": self.seq[kind], **body})
         if kind == "estimate":
             with self._lock:
                 self._latest = payload
@@ -192,7 +189,7 @@ class Publisher:
             if not reply["ok"]:
                 self.commands["rejected"] += 1
             with contextlib.suppress(Exception):
-                query.reply(str(query.key_expr), json.dumps(reply).encode(), encoding=_JSON)
+                query.reply(str(query.key_expr), jsonlines.dumps(reply), encoding=_JSON)
 
         return handle
 

@@ -26,7 +26,7 @@ class RangeMeas:
 
 
 @dataclass(frozen=True, slots=True)
-class RangeDecision:
+class GateDecision:
     accepted: bool
     residual_m: float
     gate_m: float
@@ -34,7 +34,7 @@ class RangeDecision:
 
 
 @dataclass(frozen=True, slots=True)
-class Estimate:
+class StateEstimate:
     lat: float  # radians
     lon: float
     current_n: float  # m/s
@@ -95,16 +95,16 @@ class NavFilter(Protocol):
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None: ...
 
-    def range_update(self, m: RangeMeas) -> RangeDecision: ...
+    def range_update(self, m: RangeMeas) -> GateDecision: ...
 
-    def estimate(self) -> Estimate: ...
+    def estimate(self) -> StateEstimate: ...
 
     # a mode's state is its own (an array, or an array with a reference point)
     def state_diff(self, a: Any, b: Any) -> np.ndarray: ...
 
     def state_apply(self, x: Any, dx: np.ndarray) -> Any: ...
 
-    def estimate_of(self, x: Any, P: np.ndarray) -> Estimate: ...
+    def estimate_of(self, x: Any, P: np.ndarray) -> StateEstimate: ...
 
 
 def joseph_update(

@@ -47,7 +47,7 @@ import numpy as np
 from navd import geodesy
 from navd.config import NoiseConfig
 from navd.filter import reacquire
-from navd.filter.common import Estimate, History, RangeDecision, RangeMeas, joseph_update
+from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate, joseph_update
 from navd.filter.integrity import chi2_quantile
 
 N_STATES = 8
@@ -273,7 +273,7 @@ class RangeEKF:
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
         self.history.widen(self.P.copy())
 
-    def range_update(self, m: RangeMeas) -> RangeDecision:
+    def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
         expected, H = self.predicted_range(m)
         r_var = m.std_m**2
@@ -293,9 +293,9 @@ class RangeEKF:
             rejected = [r for ok, r in self._recent if not ok]
             if len(rejected) >= self.reacquire_after:
                 if self._reacquire(m):
-                    return RangeDecision(False, residual, gate_m, "gate_reacquire")
+                    return GateDecision(False, residual, gate_m, "gate_reacquire")
                 self.reacquire_refused += 1
-            return RangeDecision(False, residual, gate_m, "gate")
+            return GateDecision(False, residual, gate_m, "gate")
         self._window.append((m, False))
         self._nis.append(self.last_nis)
         if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
@@ -304,7 +304,7 @@ class RangeEKF:
             # re-acquisition as after a run of rejections.
             self._nis.clear()
             if self._reacquire(m, min_rejected=0):
-                return RangeDecision(False, residual, gate_m, "gate_reacquire")
+                return GateDecision(False, residual, gate_m, "gate_reacquire")
             self.reacquire_refused += 1
         if residual > _HUBER_K * math.sqrt(S):
             # A long reply inside the gate may still be multipath: the gate is wide when
@@ -317,7 +317,7 @@ class RangeEKF:
         self._limit_current()
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
-        return RangeDecision(True, residual, gate_m, "ok")
+        return GateDecision(True, residual, gate_m, "ok")
 
     def _rays(self) -> list[reacquire.Ray]:
         """The recent ranges seen from the present estimate, for the re-acquisition fit."""
@@ -400,8 +400,8 @@ class RangeEKF:
         self.x = self.state_apply(self.x, dx, hd)
 
     # -- outputs and smoother hooks ----------------------------------------------------
-    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> Estimate:
-        return Estimate(
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
+        return StateEstimate(
             float(x[0]),
             float(x[1]),
             float(x[2]),
@@ -411,7 +411,7 @@ class RangeEKF:
             float(P[0, 1]),
         )
 
-    def estimate(self) -> Estimate:
+    def estimate(self) -> StateEstimate:
         return self.estimate_of(self.x, self.P)
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
 from navd.filter import compass
 from navd.filter.beacons import BeaconResolver
-from navd.filter.common import NavFilter, RangeDecision, RangeMeas
+from navd.filter.common import GateDecision, NavFilter, RangeMeas, StateEstimate
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
@@ -48,6 +48,7 @@ from navd.records import (
     Velocity,
     implausible,
 )
+from navd.schema import Estimate, RangeDecision, to_dict
 
 _GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
 _GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
@@ -134,7 +135,7 @@ class Navigator:
         self._alt_n = 0
         self._t_gps: float | None = None
         self._t_gps_streak = -math.inf
-        self._tick_steps: list[tuple[int, dict[str, Any]]] = []
+        self._tick_steps: list[tuple[int, Estimate]] = []
         self._smoothed_done: list[dict[str, Any]] = []
         self._p_surface: deque[float] = deque(maxlen=50)
 
@@ -218,10 +219,9 @@ class Navigator:
         out = []
         for idx, rec in self._tick_steps:
             est = self.filter.estimate_of(xs[idx], Ps[idx])
-            r = dict(rec)
-            self._fill(r, est)
-            r["smoothed"] = True
-            out.append(r)
+            r = replace(rec, smoothed=True)
+            _fill(r, est)
+            out.append(to_dict(r))
         return out
 
     @property
@@ -354,27 +354,22 @@ class Navigator:
         self.counters["gps_fused"] += 1
 
     def _on_range(self, rec: Range | TravelTime) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "type": "range",
-            "t": rec.t,
-            "t_ping": rec.t_ping,
-            "beacon": rec.beacon,
-        }
+        out = RangeDecision(rec.t, rec.t_ping, rec.beacon)
 
         def refuse(reason: str) -> dict[str, Any]:
             self.counters[f"range_{reason}"] += 1
             self.counters["ranges_rejected"] += 1
-            out.update(accepted=False, residual_m=None, gate_m=None, reason=reason)
-            return out
+            out.reason = reason
+            return to_dict(out)
 
         fix, why = self.beacons.resolve(
             rec.t, rec.beacon, rec.beacon_lat, rec.beacon_lon, rec.beacon_depth
         )
         if fix is None:
             return refuse(why)
-        out["beacon_lat"] = math.degrees(fix.lat)
-        out["beacon_lon"] = math.degrees(fix.lon)
-        out["beacon_depth"] = fix.depth
+        out.beacon_lat = math.degrees(fix.lat)
+        out.beacon_lon = math.degrees(fix.lon)
+        out.beacon_depth = fix.depth
         c_water = self.sound.at(0.5 * (self._depth + fix.depth))
         if isinstance(rec, TravelTime):
             rng = travel_time_to_range(rec.twtt_s, c_water, fix.turnaround_s)
@@ -386,7 +381,7 @@ class Navigator:
             rng = travel_time_to_range(rec.twtt_s, c_water, 0.0)
         else:
             rng = rescale_range(rec.m, self.sound.modem_mps, c_water)
-        out["range_m"] = rng
+        out.range_m = rng
         if not 0.0 < rng <= self.nav.gate.max_range_m:
             return refuse("range_out_of_bounds")
         self._to_net(rec.t, fix, rng)
@@ -408,18 +403,16 @@ class Navigator:
             beacon_position_std_m=fix.position_std_m,
             beacon_position_corr_s=fix.position_corr_s,
         )
-        d: RangeDecision = self.filter.range_update(meas)
+        d: GateDecision = self.filter.range_update(meas)
         self.integrity.range(d.accepted, getattr(self.filter, "last_nis", math.nan))
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if not d.accepted:
             self.counters[f"range_{d.reason}"] += 1
-        out.update(
-            accepted=d.accepted,
-            residual_m=d.residual_m if math.isfinite(d.residual_m) else None,
-            gate_m=d.gate_m if math.isfinite(d.gate_m) else None,  # None: no gate (vlbl)
-            reason=d.reason,
-        )
-        return out
+        out.accepted = d.accepted
+        out.residual_m = d.residual_m if math.isfinite(d.residual_m) else None
+        out.gate_m = d.gate_m if math.isfinite(d.gate_m) else None  # None: no gate (vlbl)
+        out.reason = d.reason
+        return to_dict(out)
 
     def _to_net(self, t: float, fix: Any, rng: float) -> None:
         """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
@@ -454,70 +447,71 @@ class Navigator:
             return "surface"
         return "surfacing"
 
-    def _fill(self, r: dict[str, Any], est: Any) -> None:
-        r["lat"] = math.degrees(est.lat)
-        r["lon"] = math.degrees(est.lon)
-        r["current_n"] = est.current_n
-        r["current_e"] = est.current_e
-        r["std_n"] = math.sqrt(max(0.0, est.var_n))
-        r["std_e"] = math.sqrt(max(0.0, est.var_e))
-        r["cov_ne"] = est.cov_ne
-
     def _estimate_record(self, t: float) -> dict[str, Any] | None:
         if not self.filter.initialised:
             return None
         est = self.filter.estimate()
         heading, speed = self._speed_heading(t)
-        r: dict[str, Any] = {"type": "estimate", "t": round(t, 9)}
-        self._fill(r, est)
-        r["depth"] = self._depth
-        r["mode"] = self.mode(t)
         std_max = math.sqrt(max(0.0, _largest_eig(est.var_n, est.var_e, est.cov_ne)))
-        r["integrity"] = self.integrity.assess(std_max)
+        integrity = self.integrity.assess(std_max)
+        r = Estimate(
+            round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self._depth, self.mode(t), integrity
+        )
+        _fill(r, est)
         if self.integrity.reason:
-            r["integrity_reason"] = self.integrity.reason
+            r.integrity_reason = self.integrity.reason
         if isinstance(self.filter, RangeEKF):
             x = self.filter.x
-            r["heading_bias_deg"] = math.degrees(float(x[4]))
-            r["speed_scale"] = float(x[5])
-            r["beacon_offset_n"] = float(x[6])
-            r["beacon_offset_e"] = float(x[7])
+            r.heading_bias_deg = math.degrees(float(x[4]))
+            r.speed_scale = float(x[5])
+            r.beacon_offset_n = float(x[6])
+            r.beacon_offset_e = float(x[7])
             heading += float(x[4])
             speed *= float(x[5])
-        r["heading_deg"] = math.degrees(geodesy.wrap_lon(heading)) % 360.0
-        r["speed_mps"] = speed
+        r.heading_deg = math.degrees(geodesy.wrap_lon(heading)) % 360.0
+        r.speed_mps = speed
         if self.dr.lat is not None and self.dr.lon is not None:
-            r["dr_lat"] = math.degrees(self.dr.lat)
-            r["dr_lon"] = math.degrees(self.dr.lon)
+            r.dr_lat = math.degrees(self.dr.lat)
+            r.dr_lon = math.degrees(self.dr.lon)
         fx = self.net.fix
         if fx is not None and self.net.t_fix is not None and t - self.net.t_fix <= _FIX_MAX_AGE_S:
-            r["fix_lat"] = math.degrees(fx.lat)
-            r["fix_lon"] = math.degrees(fx.lon)
-            r["fix_std_m"] = math.sqrt(0.5 * float(fx.cov_ne[0, 0] + fx.cov_ne[1, 1]))
-            r["fix_age_s"] = t - self.net.t_fix
+            r.fix_lat = math.degrees(fx.lat)
+            r.fix_lon = math.degrees(fx.lon)
+            r.fix_std_m = math.sqrt(0.5 * float(fx.cov_ne[0, 0] + fx.cov_ne[1, 1]))
+            r.fix_age_s = t - self.net.t_fix
         if self._dvl_seen and self.dvl.lat is not None and self.dvl.lon is not None:
-            r["dvl_lat"] = math.degrees(self.dvl.lat)
-            r["dvl_lon"] = math.degrees(self.dvl.lon)
-            r["dvl_error_pred_m"] = self.dvl.pred_error_m
-            ttl = self.dvl.time_to_limit_s()
-            if ttl is not None:
-                r["dvl_time_to_limit_s"] = ttl
+            r.dvl_lat = math.degrees(self.dvl.lat)
+            r.dvl_lon = math.degrees(self.dvl.lon)
+            r.dvl_error_pred_m = self.dvl.pred_error_m
+            r.dvl_time_to_limit_s = self.dvl.time_to_limit_s()
         stale = []
         if t - self._t_heading > self.nav.stale_input_s:
             stale.append("heading")
         if t - self._t_rpm > self.nav.stale_input_s:
             stale.append("rpm")
         if stale:
-            r["stale"] = stale
+            r.stale = stale
             self.counters["ticks_with_stale_input"] += 1
+        out = to_dict(r)
         # one sum is NaN or infinite exactly when one of its terms is (all are bounded)
-        if not math.isfinite(sum(v for v in r.values() if type(v) is float)):
+        if not math.isfinite(sum(v for v in out.values() if type(v) is float)):
             # Never publish a NaN: say so and skip the tick.
             self.counters["estimates_not_finite"] += 1
             return None
         if self.filter.history.enabled:
             self._tick_steps.append((len(self.filter.history.steps) - 1, r))
-        return r
+        return out
+
+
+def _fill(r: Estimate, est: StateEstimate) -> None:
+    """The position, current and uncertainty of a filter state, in output units."""
+    r.lat = math.degrees(est.lat)
+    r.lon = math.degrees(est.lon)
+    r.current_n = est.current_n
+    r.current_e = est.current_e
+    r.std_n = math.sqrt(max(0.0, est.var_n))
+    r.std_e = math.sqrt(max(0.0, est.var_e))
+    r.cov_ne = est.cov_ne
 
 
 def _largest_eig(a: float, c: float, b: float) -> float:

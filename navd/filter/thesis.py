@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Estimate, History, RangeDecision, RangeMeas
+from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate
 
 
 def metres_to_rad2(lat: float, var_n_m2: float, var_e_m2: float) -> tuple[float, float]:
@@ -149,7 +149,7 @@ class ThesisEKF:
         if self.history.enabled:
             self.history.add(t, F, self.x.copy(), self.P.copy())
 
-    def range_update(self, m: RangeMeas) -> RangeDecision:
+    def range_update(self, m: RangeMeas) -> GateDecision:
         # The thesis takes the range as belonging to the arrival time.
         expected, H = measurement_model(
             self.x, m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
@@ -158,18 +158,18 @@ class ThesisEKF:
         r_e = radius_of_error(self.P, self.x[0], r_var)
         residual = m.range_m - expected
         if not accept_or_reject(expected, m.range_m, r_e):
-            return RangeDecision(False, residual, r_e, "gate")
+            return GateDecision(False, residual, r_e, "gate")
         S = float(H @ self.P @ H) + r_var
         K = self.P @ H / S
         self.x = self.x + K * residual
         self.x[1] = geodesy.wrap_lon(self.x[1])
         self.P = (np.eye(4) - np.outer(K, H)) @ self.P
         self.history.correct(self.x.copy(), self.P.copy())
-        return RangeDecision(True, residual, r_e, "ok")
+        return GateDecision(True, residual, r_e, "ok")
 
-    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> Estimate:
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
         sn, se = rad_to_metres_scale(float(x[0]))
-        return Estimate(
+        return StateEstimate(
             float(x[0]),
             float(x[1]),
             float(x[2]) * sn,
@@ -179,7 +179,7 @@ class ThesisEKF:
             float(P[0, 1]) * sn * se,
         )
 
-    def estimate(self) -> Estimate:
+    def estimate(self) -> StateEstimate:
         return self.estimate_of(self.x, self.P)
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Estimate, History, RangeDecision, RangeMeas
+from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate
 from navd.filter.lsfix import Fix
 
 
@@ -48,24 +48,24 @@ class VlblMode:
         self.t = t
         self.history.add(t, np.eye(2), self.x.copy(), self.P.copy())
 
-    def range_update(self, m: RangeMeas) -> RangeDecision:
+    def range_update(self, m: RangeMeas) -> GateDecision:
         # ranges act through the net's fixes (apply_fix); report the range's residual
         pred = geodesy.ecef_distance(
             self.x[0], self.x[1], m.vehicle_hd, m.beacon_lat, m.beacon_lon, m.beacon_hd
         )
-        return RangeDecision(True, m.range_m - pred, math.inf, "to_net")
+        return GateDecision(True, m.range_m - pred, math.inf, "to_net")
 
     def apply_fix(self, fix: Fix) -> None:
         self.x = np.array([fix.lat, fix.lon])
         self.P = np.array(fix.cov_ne, dtype=float)
         self.history.correct(self.x.copy(), self.P.copy())
 
-    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> Estimate:
-        return Estimate(
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
+        return StateEstimate(
             float(x[0]), float(x[1]), 0.0, 0.0, float(P[0, 0]), float(P[1, 1]), float(P[0, 1])
         )
 
-    def estimate(self) -> Estimate:
+    def estimate(self) -> StateEstimate:
         return self.estimate_of(self.x, self.P)
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -4,12 +4,15 @@ Replay reads and writes hundreds of thousands of lines; orjson does that several
 times faster than the standard library.  Both reject what JSON does not allow
 (orjson refuses ``NaN`` literals when reading, navd never writes a non-finite
 number), and both write floats that read back to the same value (the text of very
-small numbers differs: ``5.1e-05`` against ``0.000051``).
+small numbers differs: ``5.1e-05`` against ``0.000051``).  A non-finite number
+is written ``null`` by orjson and refused by the standard library: the filter's
+outputs are checked finite before they get here.
 """
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
 
 try:
@@ -17,7 +20,7 @@ try:
 except ImportError:  # pragma: no cover - orjson is a dependency; the fallback is for vendors
     orjson = None  # type: ignore[assignment]
 
-__all__ = ["loads", "dumps_line", "DecodeError"]
+__all__ = ["loads", "dumps", "dumps_line", "read", "DecodeError"]
 
 if orjson is not None:
     DecodeError: tuple[type[Exception], ...] = (orjson.JSONDecodeError, RecursionError)
@@ -25,8 +28,13 @@ if orjson is not None:
     def loads(text: str | bytes) -> Any:
         return orjson.loads(text)
 
+    _OPTS = orjson.OPT_SERIALIZE_NUMPY  # a numpy scalar that reached an output is a number
+
+    def dumps(obj: Any) -> bytes:
+        return orjson.dumps(obj, option=_OPTS)
+
     def dumps_line(obj: Any) -> str:
-        return orjson.dumps(obj).decode() + "\n"
+        return orjson.dumps(obj, option=_OPTS).decode() + "\n"
 
 else:  # pragma: no cover
     DecodeError = (json.JSONDecodeError, RecursionError)
@@ -35,5 +43,18 @@ else:  # pragma: no cover
     def loads(text: str | bytes) -> Any:
         return json.loads(text)
 
+    def dumps(obj: Any) -> bytes:
+        return _enc(obj).encode()
+
     def dumps_line(obj: Any) -> str:
         return _enc(obj) + "\n"
+
+
+def read(path: str | Path) -> list[Any]:
+    """Every non-blank line of a file we wrote ourselves (outputs, truth).
+
+    Logs from elsewhere go through :mod:`navd.formats.mlog`, which skips and counts
+    malformed lines; here a malformed line raises ``DecodeError``.
+    """
+    with open(path, "rb") as fh:
+        return [loads(line) for line in fh if line.strip()]

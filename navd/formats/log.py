@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
-import json
 import os
 import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from navd.formats import jsonlines
 from navd.formats.mlog import FORMAT, VERSION, record_to_json
 from navd.records import Record
+from navd.schema import LOG_TYPE
 
 _RETRY_AFTER_S = 10.0
 
@@ -53,7 +54,6 @@ class RecordLog:
         self.dropped = 0
         self.last_error = ""
         self._retry_at = 0.0
-        self._dumps = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 
     @property
     def degraded(self) -> bool:
@@ -73,7 +73,7 @@ class RecordLog:
             "time_base": "monotonic",
             "start_monotonic": time.monotonic(),
         }
-        line = json.dumps(header) + "\n"
+        line = jsonlines.dumps_line(header)
         fh.write(line)
         fh.flush()
         self.fh, self.size = fh, len(line)
@@ -90,9 +90,9 @@ class RecordLog:
                 self.dropped += 1
                 return
         try:
-            line = self._dumps(obj) + "\n"
+            line = jsonlines.dumps_line(obj)
             self.fh.write(line)  # type: ignore[union-attr]
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, TypeError) as exc:
             self._fail(exc)
             self.dropped += 1
             return
@@ -148,8 +148,10 @@ class RecordLog:
 
     def output(self, out: dict[str, Any]) -> None:
         # filter outputs are logged under their own names so the log stays a measurement log
-        kind = "decision" if out.get("type") == "range" else out.get("type", "output")
-        self._write({**out, "type": kind})
+        kind = out.get("type", "output")
+        if kind in LOG_TYPE:
+            out = {**out, "type": LOG_TYPE[kind]}
+        self._write(out)
 
     def flush(self) -> None:
         """Hand buffered lines to the kernel: from here a crash of navd loses nothing."""

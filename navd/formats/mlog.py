@@ -8,7 +8,6 @@ fatal (:class:`LogError`).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
@@ -276,8 +275,8 @@ def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementL
             if not first:
                 raise LogError(f"{p}: empty file, expected a measurement log header")
             try:
-                header = _check_header(json.loads(first))
-            except json.JSONDecodeError:
+                header = _check_header(jsonlines.loads(first))
+            except jsonlines.DecodeError:
                 raise LogError(f"{p}: line 1: header is not valid JSON") from None
             records: list[Record] = []
             skipped: list[Skipped] = []
@@ -310,7 +309,7 @@ class MeasurementWriter:
     def __init__(self, fh: IO[str], start_utc: str, **extra: Any) -> None:
         self._fh = fh
         header = {"format": FORMAT, "version": VERSION, "start_utc": start_utc, **extra}
-        fh.write(json.dumps(header) + "\n")
+        fh.write(jsonlines.dumps_line(header))
 
     def write(self, rec: Record) -> None:
-        self._fh.write(json.dumps(record_to_json(rec), separators=(",", ":")) + "\n")
+        self._fh.write(jsonlines.dumps_line(record_to_json(rec)))

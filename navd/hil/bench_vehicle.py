@@ -7,7 +7,6 @@ several bench vehicles (or a test run beside a demo) never collide.
 
 from __future__ import annotations
 
-import json
 import math
 import signal
 import socket
@@ -16,6 +15,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
+
+from navd.formats import jsonlines
 
 BIN = Path(sys.executable).parent
 _COMPARED = ("lat", "lon", "std_n", "std_e", "current_n", "current_e")
@@ -42,7 +43,7 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
     live = {o["t"]: o for f in logs for o in _objects(f) if o.get("type") == "estimate"}
     replayed = {}
     if r.returncode == 0:
-        replayed = {o["t"]: o for o in map(json.loads, out.read_text().splitlines())}
+        replayed = {o["t"]: o for o in jsonlines.read(out)}
     common = [t for t in live if t in replayed and replayed[t]["type"] == "estimate"]
     worst = max(
         (abs(live[t][k] - replayed[t][k]) for t in common for k in _COMPARED), default=math.inf
@@ -56,8 +57,8 @@ def _objects(path: Path) -> list[dict]:
     out = []
     for line in path.read_text().splitlines():
         try:
-            o = json.loads(line)
-        except json.JSONDecodeError:
+            o = jsonlines.loads(line)
+        except jsonlines.DecodeError:
             continue
         if isinstance(o, dict):
             out.append(o)
@@ -90,7 +91,7 @@ class BenchVehicle:
             self.banner = self.hil.stderr.readline().strip()
             if not (d / "clock.json").exists():
                 raise RuntimeError(f"navd-hil did not start: {self.banner}")
-            self.t0_monotonic = json.loads((d / "clock.json").read_text())["t0_monotonic"]
+            self.t0_monotonic = jsonlines.loads((d / "clock.json").read_bytes())["t0_monotonic"]
             self.navd = subprocess.Popen(
                 [str(BIN / "navd"), "run", "--config", str(self.config)], stderr=navd_stderr
             )

@@ -9,12 +9,12 @@ mission report.  No hardware, no router, no internet.
 
 from __future__ import annotations
 
-import json
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+from navd.formats import jsonlines
 from navd.hil.bench_vehicle import BIN, BenchVehicle
 
 
@@ -50,9 +50,9 @@ def main() -> int:
     t0 = v.t0_monotonic
     with (veh / "truth.jsonl").open() as src, (out / "truth_monotonic.jsonl").open("w") as dst:
         for line in src:
-            s = json.loads(line)
+            s = jsonlines.loads(line)
             s["t"] = round(s["t"] + t0, 9)
-            dst.write(json.dumps(s) + "\n")
+            dst.write(jsonlines.dumps_line(s))
     navd_cmd = [str(BIN / "navd")]
     subprocess.run(
         [

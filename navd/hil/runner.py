@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import json
 import math
 import signal
 import sys
@@ -29,6 +28,7 @@ from typing import Any
 import yaml
 
 from navd.config import ConfigError, config_from_dict
+from navd.formats import jsonlines
 from navd.hil.emulators.ahrs import AhrsEmulator
 from navd.hil.emulators.castle import CastleEmulator
 from navd.hil.emulators.gps import GpsEmulator
@@ -130,7 +130,7 @@ class Bench:
         (d / "navd.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
         with (d / "truth.jsonl").open("w", encoding="utf-8") as fh:
             for s in self.mission.truth:
-                fh.write(json.dumps(asdict(s), separators=(",", ":")) + "\n")
+                fh.write(jsonlines.dumps_line(asdict(s)))
 
     def _pressure(self, depth: float) -> float:
         s = self.site
@@ -141,7 +141,8 @@ class Bench:
     ) -> None:
         d = self.dir
         self.t0 = time.monotonic()
-        (d / "clock.json").write_text(json.dumps({"t0_monotonic": self.t0, "speed": self.speed}))
+        clock = {"t0_monotonic": self.t0, "speed": self.speed}
+        (d / "clock.json").write_bytes(jsonlines.dumps(clock))
         # every emulator paces its output at the daemon's configured line speed
         b = self.baud
         emus = {

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 import yaml
 
 from navd.config import ConfigError, config_from_dict
+from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementWriter
 from navd.hil.scenario import Scenario, list_scenarios, load_scenario
 from navd.hil.world import Mission, simulate
@@ -75,9 +75,9 @@ def write_mission(
     (out_dir / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
     with (out_dir / "truth.jsonl").open("w", encoding="utf-8") as fh:
         for s in m.truth:
-            fh.write(json.dumps(asdict(s), separators=(",", ":")) + "\n")
+            fh.write(jsonlines.dumps_line(asdict(s)))
     meta = {"scenario": m.scenario.name, "seed": m.seed, "pings": m.pings, "replies": m.replies}
-    (out_dir / "mission.json").write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
+    (out_dir / "mission.json").write_text(jsonlines.dumps_line(meta), encoding="utf-8")
 
 
 def main(argv: list[str] | None = None) -> int:

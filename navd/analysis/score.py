@@ -1,13 +1,15 @@
-"""Scoring a replayed mission against the simulator's truth.
+"""Scoring a mission: against the simulator's truth, or against GPS after surfacing.
 
 Errors are measured with GeographicLib's inverse geodesic (independent of navd's
 geodesy).  Only the submerged part of the mission is scored: at the surface every
-mode is pinned to GPS.
+mode is pinned to GPS.  The surfacing error is the error of the last submerged
+estimate: against the truth at that time where the truth is known (:func:`score`),
+else against the first GPS fix after it (:func:`surfacing_error_gps`, what a
+field mission has).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,6 +17,9 @@ from typing import Any
 
 import numpy as np
 from geographiclib.geodesic import Geodesic
+
+from navd.formats import jsonlines
+from navd.records import Gps
 
 _GEOD = Geodesic.WGS84
 CHI2_2DOF_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
@@ -57,8 +62,7 @@ def replies_to_reacquire(ranges: list[dict[str, Any]]) -> list[int]:
 
 
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
-    with open(path, encoding="utf-8") as fh:
-        return [json.loads(line) for line in fh if line.strip()]
+    return jsonlines.read(path)
 
 
 def _ne_error(lat: float, lon: float, lat_t: float, lon_t: float) -> tuple[float, float]:
@@ -119,3 +123,21 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         fix_coverage=len(fix_errs) / len(errs),
         reacquire_replies_max=float(max(reacq)) if reacq else math.nan,
     )
+
+
+def surfacing_error_gps(
+    estimates: list[dict[str, Any]], fixes: list[Gps]
+) -> tuple[float, float] | None:
+    """Distance from the last submerged estimate to the first GPS fix after it, and
+    how long after it that fix came; None without both."""
+    last_sub = None
+    for e in estimates:
+        if e["mode"] == "submerged":
+            last_sub = e
+    if last_sub is None:
+        return None
+    for f in fixes:
+        if f.t > last_sub["t"] and f.lat is not None and f.lon is not None:
+            dn, de = _ne_error(last_sub["lat"], last_sub["lon"], f.lat, f.lon)
+            return math.hypot(dn, de), f.t - last_sub["t"]
+    return None

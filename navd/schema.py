@@ -1,0 +1,181 @@
+"""What navd says: the estimate, the range decision and health, defined once.
+
+The filter builds these, the daemon logs and publishes them, ``navd replay`` writes
+them and ``navd report`` reads them; every field has one name everywhere (documented
+in docs/schema.md).  :func:`to_dict` is their serialised form: the fields in
+declaration order, optional fields left out while they are None.  The JSON text is
+made by :mod:`navd.formats.jsonlines` alone.
+
+The one place a type name differs is the daemon's own log, which holds the measured
+ranges too: there a range decision is written as ``decision`` (:data:`LOG_TYPE`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+#: the version in every zenoh message (``schema``); it changes when a field changes meaning
+SCHEMA_VERSION = 1
+
+#: output types as the daemon's log writes them, where they would clash with a measurement
+LOG_TYPE = {"range": "decision"}
+#: and back
+FROM_LOG_TYPE = {v: k for k, v in LOG_TYPE.items()}
+
+
+def _optional() -> Any:
+    return field(default=None, metadata={"optional": True})
+
+
+@dataclass(slots=True)
+class Estimate:
+    """One filter step (10 Hz). Positions WGS-84 degrees, lengths metres, speeds m/s."""
+
+    t: float  # the filter's time: monotonic seconds live, log seconds in replay
+    lat: float
+    lon: float
+    current_n: float
+    current_e: float
+    std_n: float  # one-sigma position uncertainty north, east
+    std_e: float
+    cov_ne: float  # their covariance, m^2
+    depth: float
+    mode: str  # surface | surfacing | submerged
+    integrity: str  # ok | degraded | lost
+    integrity_reason: str | None = _optional()
+    heading_bias_deg: float | None = _optional()  # default mode's extra states
+    speed_scale: float | None = _optional()
+    beacon_offset_n: float | None = _optional()
+    beacon_offset_e: float | None = _optional()
+    heading_deg: float = 0.0  # true heading and water speed the filter used
+    speed_mps: float = 0.0
+    dr_lat: float | None = _optional()  # dead reckoning since the last fix
+    dr_lon: float | None = _optional()
+    fix_lat: float | None = _optional()  # the virtual-LBL least-squares fix, while fresh
+    fix_lon: float | None = _optional()
+    fix_std_m: float | None = _optional()
+    fix_age_s: float | None = _optional()
+    dvl_lat: float | None = _optional()  # DVL dead reckoning and its predicted error
+    dvl_lon: float | None = _optional()
+    dvl_error_pred_m: float | None = _optional()
+    dvl_time_to_limit_s: float | None = _optional()
+    stale: list[str] | None = _optional()  # inputs older than navigation.stale_input_s
+    smoothed: bool | None = _optional()  # written by the RTS smoother
+    t_utc: str | None = _optional()  # the daemon adds the system clock's UTC
+    type: str = "estimate"
+
+
+@dataclass(slots=True)
+class RangeDecision:
+    """What the filter did with one range or travel time."""
+
+    t: float  # the reply's arrival
+    t_ping: float
+    beacon: str
+    beacon_lat: float | None = _optional()  # the beacon position used
+    beacon_lon: float | None = _optional()
+    beacon_depth: float | None = _optional()
+    range_m: float | None = _optional()  # the range with the water's sound speed
+    accepted: bool = False
+    residual_m: float | None = None  # None: the range never reached the gate
+    gate_m: float | None = None
+    reason: str = ""  # ok, gate, or why it never reached the gate
+    type: str = "range"
+
+
+@dataclass(slots=True)
+class DeviceHealth:
+    connected: bool
+    last_rx_age_s: float | None
+    rate_hz: float  # records a second over the last 5 s
+    records: int
+    bad_checksum: int
+    bad_frame: int
+    skipped_bytes: int
+    reconnects: int
+    opens: int
+    read_errors: int
+    write_errors: int
+    last_error: str
+    device_errors: int  # error answers from the device
+    resets: int
+    last_device_error: str
+    info: dict[str, Any]  # what the device said of itself: firmware, serial number, ...
+    internal_errors: dict[str, int]
+
+
+@dataclass(slots=True)
+class Health:
+    """The daemon's state at 1 Hz: ``ok`` false with reasons in ``degraded``."""
+
+    t: float
+    mode: str
+    integrity: str
+    ok: bool
+    degraded: list[str]
+    estimates_per_s: float
+    input_age_s: dict[str, float | None]
+    last_range_accepted_age_s: float | None
+    devices: dict[str, DeviceHealth]
+    pings: dict[str, Any]
+    modem: dict[str, Any]
+    filter: dict[str, int]
+    ticks: int
+    tick_overruns: int
+    tick_lateness_ms: dict[str, float | None]
+    publish_latency_ms: dict[str, float | None]
+    log: dict[str, Any]
+    zenoh: dict[str, Any]
+    temperature_c: float | None
+    gps_utc: str | None
+    esc: dict[str, float]
+    type: str = "health"
+
+
+def _plan(cls: type) -> tuple[tuple[str, bool], ...]:
+    return tuple((f.name, bool(f.metadata.get("optional"))) for f in fields(cls))
+
+
+_PLANS = {cls: _plan(cls) for cls in (Estimate, RangeDecision, DeviceHealth, Health)}
+
+
+def to_dict(obj: Estimate | RangeDecision | Health | DeviceHealth) -> dict[str, Any]:
+    """The serialised form: ``type`` first, optional fields left out while None.
+
+    A device's ``info`` is spread into its entry (``firmware``, ``serial_number``...).
+    """
+    out: dict[str, Any] = {}
+    if not isinstance(obj, DeviceHealth):
+        out["type"] = obj.type
+    for name, optional in _PLANS[type(obj)]:
+        v = getattr(obj, name)
+        if name == "type" or (optional and v is None):
+            continue
+        if name == "info":
+            out.update(v)
+        elif isinstance(v, DeviceHealth):
+            out[name] = to_dict(v)
+        elif name == "devices":
+            out[name] = {k: to_dict(d) for k, d in v.items()}
+        else:
+            out[name] = v
+    return out
+
+
+def outputs_of(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The estimates and range decisions among rows of a replay output or a daemon log.
+
+    A decision is a ``range`` with ``accepted`` (a measured range never has it), or a
+    daemon log's ``decision``.
+    """
+    est, dec = [], []
+    for r in rows:
+        kind = r.get("type")
+        if kind == "estimate" and not r.get("smoothed"):
+            est.append(r)
+        elif kind == "range" and "accepted" in r:
+            dec.append(r)
+        elif kind in FROM_LOG_TYPE and FROM_LOG_TYPE[kind] == "range":
+            dec.append({**r, "type": "range"})
+    return est, dec
