@@ -1,21 +1,31 @@
 """The ``navd`` command line: run, replay, report, watch, capture, calibrate, check-config.
 
-Bad input ends in one line on stderr and exit status 2, never a traceback.
+Bad input ends in one line on stderr and exit status 2, never a traceback; a config
+error of ``navd run`` exits 78 (EX_CONFIG), on which systemd does not restart it.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from navd.config import ConfigError, load_config
 from navd.formats.mlog import LogError
 
+#: the modules of optional extras, and the extra that brings each
+_EXTRAS = {"matplotlib": "report", "geographiclib": "report", "pyproj": "sim"}
+EX_CONFIG = 78  # sysexits.h: a configuration error; navd.service does not restart on it
+
+
+def _config(args: argparse.Namespace, attr: str = "config"):
+    return load_config(getattr(args, attr), getattr(args, "site", None) or ())
+
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from navd.analysis.replay import replay
 
-    cfg = load_config(args.config)
+    cfg = _config(args)
     replay(list(args.input), cfg, args.out, smooth=args.smooth, strict=args.strict)
     return 0
 
@@ -23,15 +33,28 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from navd.analysis.report import make_report
 
-    summary = make_report(args.output, args.out, truth=args.truth, measurements=args.log)
+    try:
+        summary = make_report(args.output, args.out, truth=args.truth, measurements=args.log)
+    except (KeyError, TypeError, ValueError) as exc:
+        # a line that is JSON but not the output schema (another program's file)
+        what = f"{exc.__class__.__name__}: {exc}"[:120]
+        print(
+            f"navd: report: {args.output}: not a replay output or daemon log ({what})",
+            file=sys.stderr,
+        )
+        return 2
     print(summary)
     return 0
 
 
 def _cmd_check_config(args: argparse.Namespace) -> int:
-    cfg = load_config(args.file)
+    from navd.config import check_for_run
+
+    cfg = _config(args, "file")
+    if not args.offline:
+        check_for_run(cfg)  # exactly what navd run refuses
     nav = cfg.navigation
-    print(f"{args.file}: ok")
+    print(f"{' + '.join([args.file, *(args.site or [])])}: ok")
     print(
         f"  filter mode {nav.filter}, {nav.rate_hz:g} Hz, "
         f"declination {nav.magnetic_declination_deg:+g} deg"
@@ -50,12 +73,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import logging
     import signal
 
-    from navd.config import check_for_run
+    from navd.config import check_for_run, default_config_path
     from navd.daemon.daemon import Daemon
     from navd.daemon.publish import Publisher
 
-    cfg = load_config(args.config)
-    check_for_run(cfg)
+    try:
+        args.config = args.config or default_config_path(os.environ)
+        if args.config is None:
+            raise ConfigError("--config: required (outside systemd's ConfigurationDirectory)")
+        cfg = _config(args)
+        check_for_run(cfg)
+    except ConfigError as exc:
+        print(f"navd: {exc}", file=sys.stderr)
+        return EX_CONFIG
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
 
     def publisher(loop, on_command):
@@ -66,7 +96,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             loop.add_signal_handler(sig, stop.set)
-        await Daemon(cfg, publisher_factory=publisher).run(stop)
+        daemon = Daemon(cfg, publisher_factory=publisher)
+        await daemon.run(stop)
+        logging.getLogger("navd").info("stopped; log %s", daemon.rlog.path or "(nothing written)")
 
     asyncio.run(main())
     return 0
@@ -75,7 +107,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_watch(args: argparse.Namespace) -> int:
     from navd.watch import watch
 
-    return watch(load_config(args.config), args.count, args.seconds, args.every)
+    return watch(_config(args), args.count, args.seconds, args.every)
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
@@ -84,7 +116,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     from navd.daemon.capture import capture
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    path = capture(load_config(args.config), args.device, args.seconds, args.out)
+    path = capture(_config(args), args.device, args.seconds, args.out)
     if path is None:
         print(f"navd: capture: nothing written (did devices.{args.device}.port open?)")
         return 1
@@ -96,7 +128,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from navd.analysis.calibrate import CalibrationError, fit, stretches, supports_offset
     from navd.formats.mlog import read_measurement_log
 
-    cfg = load_config(args.config)
+    cfg = _config(args)
     nav = cfg.navigation
     records = [r for path in args.log for r in read_measurement_log(path).records]
     records.sort(key=lambda r: r.t)
@@ -156,6 +188,7 @@ def build_parser() -> argparse.ArgumentParser:
         "daemon log may be given in order",
     )
     r.add_argument("--config", help="configuration YAML (defaults if omitted)")
+    _site_option(r)
     r.add_argument("--out", required=True, help="output JSON Lines")
     r.add_argument("--smooth", action="store_true", help="add an RTS smoothing pass")
     r.add_argument("--strict", action="store_true", help="the first malformed line is fatal")
@@ -169,11 +202,17 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=_cmd_report)
 
     run = sub.add_parser("run", help="run the daemon on the vehicle's serial devices")
-    run.add_argument("--config", required=True)
+    run.add_argument(
+        "--config",
+        help="configuration YAML (default under systemd: $CONFIGURATION_DIRECTORY/navd.yaml; "
+        "the log goes to log.dir, else $LOGS_DIRECTORY, else ./navd-log)",
+    )
+    _site_option(run)
     run.set_defaults(func=_cmd_run)
 
     w = sub.add_parser("watch", help="print the live estimate published over zenoh")
     w.add_argument("--config", help="the daemon's config (vehicle name, zenoh endpoints)")
+    _site_option(w)
     w.add_argument("--count", type=int, help="stop after this many estimates")
     w.add_argument("--seconds", type=float, help="stop after this long")
     w.add_argument("--every", type=float, default=1.0, help="print at most every N s (0: all)")
@@ -185,6 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cap.add_argument("device", help="ahrs, gps, pressure, motor or modem")
     cap.add_argument("--config", required=True, help="the vehicle's config (the port)")
+    _site_option(cap)
     cap.add_argument("--seconds", type=float, default=30.0, help="how long (default 30)")
     cap.add_argument("--out", required=True, help="directory for the capture log")
     cap.set_defaults(func=_cmd_capture)
@@ -196,16 +236,35 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("what", choices=["compass", "speed"])
     cal.add_argument("log", nargs="+", help="measurement or daemon log(s) with the surface runs")
     cal.add_argument("--config", help="the vehicle's config (declination, current speed map)")
+    _site_option(cal)
     cal.add_argument(
         "--window", type=float, default=120.0, help="longest straight run per stretch (s)"
     )
     cal.add_argument("--out", help="write the config snippet here (else printed)")
     cal.set_defaults(func=_cmd_calibrate)
 
-    c = sub.add_parser("check-config", help="validate a configuration file and explain it")
-    c.add_argument("file")
+    c = sub.add_parser(
+        "check-config", help="validate a configuration as navd run would, and explain it"
+    )
+    c.add_argument("file", help="configuration YAML (its overlays are read too)")
+    _site_option(c)
+    c.add_argument(
+        "--offline",
+        action="store_true",
+        help="for replay only: do not require the device ports navd run needs",
+    )
     c.set_defaults(func=_cmd_check_config)
     return p
+
+
+def _site_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--site",
+        action="append",
+        metavar="FILE",
+        help="a site overlay (e.g. config/sites/claytor-lake.yaml) on top of the config; "
+        "may be repeated",
+    )
 
 
 def _version() -> str:
@@ -230,6 +289,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except BrokenPipeError:
         return 0
+    except ModuleNotFoundError as exc:  # an optional extra (report, sim) not installed
+        extra = _EXTRAS.get((exc.name or "").split(".")[0])
+        if extra is None:
+            raise
+        print(f"navd: {exc.name} is not installed: pip install 'navd[{extra}]'", file=sys.stderr)
+        return 2
     except OSError as exc:
         name = getattr(exc, "filename", None) or ""
         print(f"navd: {name}: {exc.strerror or exc}", file=sys.stderr)

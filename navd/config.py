@@ -8,6 +8,7 @@ them, so an unknown key, a wrong type, a non-finite or out-of-range value is a
 
 from __future__ import annotations
 
+import copy
 import math
 import reprlib
 import types
@@ -225,7 +226,9 @@ class ZenohConfig:
 
 @dataclass(frozen=True, slots=True)
 class LogConfig:
-    dir: str = "navd-log"
+    # empty: $LOGS_DIRECTORY under systemd (LogsDirectory=navd: /var/log/navd), else
+    # ./navd-log, for a development run (resolved by log_dir)
+    dir: str = ""
     rotate_mb: float = _num(64.0, lo=1.0, hi=100_000.0)  # smaller makes files by the second
     fsync_s: float = _num(1.0, lo=0.1, hi=60.0)
     raw_bytes: bool = True  # also log every byte off the serial ports
@@ -250,6 +253,20 @@ class Config:
     devices: DevicesConfig = field(default_factory=DevicesConfig)
     zenoh: ZenohConfig = field(default_factory=ZenohConfig)
     log: LogConfig = field(default_factory=LogConfig)
+
+
+DEV_LOG_DIR = "navd-log"
+
+
+def log_dir(cfg: Config, env: typing.Mapping[str, str]) -> str:
+    """Where the log goes: ``log.dir``, else systemd's LogsDirectory, else ./navd-log."""
+    return cfg.log.dir or env.get("LOGS_DIRECTORY", "").split(":")[0] or DEV_LOG_DIR
+
+
+def default_config_path(env: typing.Mapping[str, str]) -> str | None:
+    """navd.yaml in systemd's ConfigurationDirectory, when navd runs under it."""
+    d = env.get("CONFIGURATION_DIRECTORY", "").split(":")[0]
+    return f"{d}/navd.yaml" if d else None
 
 
 def check_for_run(cfg: Config) -> None:
@@ -421,24 +438,69 @@ def parse_yaml(text: str) -> Any:
     return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
 
 
-def load_config(path: str | Path | None) -> Config:
-    """Load and validate a YAML config file; ``None`` gives all defaults."""
-    if path is None:
-        return Config()
-    p = Path(path)
+def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``over`` on top of ``base``: mappings merged key by key, anything else replaced."""
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+MAX_OVERLAY_DEPTH = 8  # overlays of overlays: deeper is a loop or a mistake
+
+
+def _read_yaml(p: Path) -> Any:
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read config ({exc.__class__.__name__}: {exc})") from None
     try:
-        data = parse_yaml(text)
+        return parse_yaml(text)
     except _DuplicateKey as exc:
         raise ConfigError(f"{p}: {exc}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""
         raise ConfigError(f"{p}:{where} invalid YAML") from None
+
+
+def read_with_overlays(p: Path, depth: int = 0) -> dict[str, Any]:
+    """A config file with its ``overlays`` merged on top, in order, each relative to it.
+
+    A site file is an overlay on the vehicle's file: ``overlays: [sites/claytor-lake.yaml]``
+    in navd.yaml, and the site's values win.  An empty file is an empty mapping.
+    """
+    if depth > MAX_OVERLAY_DEPTH:
+        raise ConfigError(f"{p}: overlays nested deeper than {MAX_OVERLAY_DEPTH} (a loop?)")
+    data = _read_yaml(p)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: expected a mapping of sections, got {type(data).__name__}")
+    names = data.pop("overlays", [])
+    if isinstance(names, str):
+        names = [names]
+    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
+        raise ConfigError(f"{p}: overlays: expected a file name or a list of them")
+    for name in names:
+        data = deep_merge(data, read_with_overlays(p.parent / name, depth + 1))
+    return data
+
+
+def load_config(path: str | Path | None, sites: typing.Sequence[str | Path] = ()) -> Config:
+    """Load and validate a YAML config file with its overlays, then ``sites`` on top;
+    ``None`` and no sites gives all defaults."""
+    if path is None and not sites:
+        return Config()
+    data: dict[str, Any] = {}
+    named = []
+    for f in [*([path] if path is not None else []), *sites]:
+        data = deep_merge(data, read_with_overlays(Path(f)))
+        named.append(str(f))
     try:
         return config_from_dict(data)
     except ConfigError as exc:
-        raise ConfigError(f"{p}: {exc}") from None
+        raise ConfigError(f"{' + '.join(named)}: {exc}") from None

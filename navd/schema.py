@@ -172,7 +172,7 @@ def outputs_of(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[d
     est, dec = [], []
     for r in rows:
         kind = r.get("type")
-        if kind == "estimate" and not r.get("smoothed"):
+        if kind == "estimate":
             est.append(r)
         elif kind == "range" and "accepted" in r:
             dec.append(r)

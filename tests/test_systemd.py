@@ -62,6 +62,8 @@ def test_unit_is_notify_with_watchdog_and_dialout() -> None:
         "DeviceAllow=",
         "StateDirectory=navd",
         "LogsDirectory=navd",
+        "ConfigurationDirectory=navd",
+        "RestartPreventExitStatus=78",
     ):
         assert line in text
 

@@ -9,14 +9,29 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 from navd import geodesy
 from navd.analysis.score import score, surfacing_error_gps
 from navd.formats import jsonlines
-from navd.formats.mlog import read_measurement_log
+from navd.formats.mlog import LogError, read_measurement_log
 from navd.records import Gps
 from navd.schema import outputs_of
 
+
+def _read(path: str | Path) -> list[dict[str, Any]]:
+    rows = []
+    with open(path, "rb") as fh:
+        for n, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                obj = jsonlines.loads(line)
+            except jsonlines.DecodeError:
+                raise LogError(f"{path}: line {n}: not JSON") from None
+            if isinstance(obj, dict):
+                rows.append(obj)
+    return rows
 
 
 class _Grid:
@@ -41,16 +56,16 @@ def make_report(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    est, rng = outputs_of(jsonlines.read(output))
+    est, rng = outputs_of(_read(output))
     if not est:
-        raise ValueError(f"{output}: no estimates to report")
+        raise LogError(f"{output}: no estimates to report (not a replay output or daemon log?)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     grid = _Grid(est[0]["lat"], est[0]["lon"])
     fixes: list[Gps] = []
     if measurements:
         fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
-    tru = jsonlines.read(truth) if truth else []
+    tru = _read(truth) if truth else []
 
     # -- track ---------------------------------------------------------------------
     fig, ax = plt.subplots(figsize=(8, 8))

@@ -15,13 +15,14 @@ import contextlib
 import datetime as dt
 import logging
 import math
+import os
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from navd.config import Config
+from navd.config import Config, log_dir
 from navd.daemon.health import RECENT_S, Vitals
 from navd.daemon.sdnotify import Notifier
 from navd.drivers import ahrs, castle, gps, keller, modem
@@ -43,6 +44,7 @@ PROBE_WAIT_S = 3.0  # a device asked who it is answers within this
 AHRS_RESET_S = 10.0  # an open AHRS silent this long is soft-reset (at most this often)
 AHRS_RESET_WAIT_S = 1.0  # from the soft reset to setting it up again
 _NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
+STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is closed in time
 MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 
 
@@ -100,7 +102,11 @@ class Daemon:
         self.nav = Navigator(cfg)
         lc = cfg.log
         self.rlog = RecordLog(
-            lc.dir, lc.rotate_mb, lc.raw_bytes, lc.raw_budget_bytes_per_s, lc.keep_mb
+            log_dir(cfg, os.environ),
+            lc.rotate_mb,
+            lc.raw_bytes,
+            lc.raw_budget_bytes_per_s,
+            lc.keep_mb,
         )
         self.publisher_factory = publisher_factory
         self.pub: Any = None
@@ -690,15 +696,21 @@ class Daemon:
             self.notifier.stopping()
             for t in tasks:
                 t.cancel()
-            for t in tasks:
-                with contextlib.suppress(asyncio.CancelledError):
-                    await t
-            for s in self.devices.values():
-                if s.transport:
-                    await s.transport.stop()
-            if self.pub is not None:
-                self.pub.close()
+            try:
+                await asyncio.wait_for(self._stop(tasks), STOP_TIMEOUT_S)
+            except TimeoutError:
+                log.error("stopping took over %g s; closing the log regardless", STOP_TIMEOUT_S)
             self.rlog.close()
+
+    async def _stop(self, tasks: list[asyncio.Task[None]]) -> None:
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError):
+                await t
+        for s in self.devices.values():
+            if s.transport:
+                await s.transport.stop()
+        if self.pub is not None:
+            self.pub.close()
 
 
 def _ms(x: float | None) -> float | None:

@@ -8,7 +8,6 @@ rate), plus ``mission.json`` with the ping statistics.
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -16,21 +15,11 @@ from typing import Any
 
 import yaml
 
-from navd.config import ConfigError, config_from_dict
+from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementWriter
 from navd.hil.scenario import Scenario, list_scenarios, load_scenario
 from navd.hil.world import Mission, simulate
-
-
-def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = copy.deepcopy(base)
-    for k, v in over.items():
-        if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = deep_merge(out[k], v)
-        else:
-            out[k] = copy.deepcopy(v)
-    return out
 
 
 def crew_config(sc: Scenario) -> dict[str, Any]:
