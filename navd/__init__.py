@@ -1,0 +1,1 @@
+"""navd: the onboard navigation daemon for small AUVs (docs/architecture.md)."""

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from navd.config import config_from_dict
-from navd.daemon.daemon import Daemon, DeviceState
+from navd.daemon.daemon import Daemon
+from navd.daemon.devices import Ahrs, ModemPinger
 from navd.drivers import ahrs, castle, keller, modem
-from navd.drivers.keller import KellerDecoder
 from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
 from navd.records import Attitude, Depth, Gps, Pressure, Rpm
@@ -45,9 +45,9 @@ def _daemon(tmp_path: Path) -> tuple[Daemon, Clock]:
     clock = Clock()
     cfg = config_from_dict({"log": {"dir": str(tmp_path / "log")}})
     d = Daemon(cfg, clock=clock)
-    for name in ("ahrs", "pressure", "motor", "modem", "gps"):
-        dec = KellerDecoder(1) if name == "pressure" else modem.ModemDecoder()
-        d.devices[name] = DeviceState(name, transport=Port(), decoder=dec)  # type: ignore[arg-type]
+    assert set(d.devices) == {"ahrs", "pressure", "motor", "modem", "gps"}
+    for dev in d.devices.values():
+        dev.transport = Port()  # type: ignore[assignment]
     return d, clock
 
 
@@ -85,7 +85,7 @@ def test_a_stalled_pressure_sensor_is_not_ok(tmp_path: Path) -> None:
 def test_keller_exception_answers_are_not_readings(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 10.0)
-    handle = d._on_record("pressure")
+    handle = d.devices["pressure"].handle
     records = d.devices["pressure"].records
     dec = d.devices["pressure"].decoder
     dec.request(keller.CH_PRESSURE)
@@ -109,10 +109,12 @@ def _keller_exception(addr: int, code: int) -> bytes:
 def test_a_modem_that_never_replies_is_not_ok(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 5.0)
+    pinger = d.devices["modem"]
+    assert isinstance(pinger, ModemPinger)
     for _ in range(3):
-        d.ping_t = clock.t
+        pinger.ping_t = clock.t
         _navigate(d, clock, 5.0)
-        d._on_modem_reply(modem.ModemReply(clock.t, "no_reply"))
+        pinger.handle(modem.ModemReply(clock.t, "no_reply"))
     h = d.health()
     assert not h["ok"] and any("pings had no range" in p for p in h["degraded"])
     assert h["pings"]["last"] == ["no_reply"] * 3
@@ -182,11 +184,12 @@ def test_an_ahrs_that_does_not_answer_the_firmware_probe_is_not_ok(tmp_path: Pat
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 5.0)
     st = d.devices["ahrs"]
+    assert isinstance(st, Ahrs)
     st.t_probe = clock.t
     _navigate(d, clock, 4.0)
     h = d.health()
     assert not h["ok"] and any("firmware probe" in p for p in h["degraded"])
-    d._on_record("ahrs")(ahrs.Firmware(clock.t, 1134))
+    st.handle(ahrs.Firmware(clock.t, 1134))
     h = d.health()
     assert h["devices"]["ahrs"]["firmware"] == 1134
     assert not any("firmware probe" in p for p in h["degraded"])
@@ -198,7 +201,7 @@ def test_the_esc_battery_is_in_health_and_its_error_answer_is_not_a_speed(
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 5.0)
     dec = castle.CastleDecoder()
-    handle = d._on_record("motor")
+    handle = d.devices["motor"].handle
     for register, answer in ((castle.REG_VOLTAGE, "0f f4 fd"), (castle.REG_SPEED, "ff ff 02")):
         dec.request(register)
         for rec in dec.feed(bytes.fromhex(answer), clock.t):
@@ -212,17 +215,21 @@ def test_the_esc_battery_is_in_health_and_its_error_answer_is_not_a_speed(
 def test_modem_refusals_are_counted(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 5.0)
-    d.ping_t = clock.t
+    pinger = d.devices["modem"]
+    assert isinstance(pinger, ModemPinger)
+    pinger.ping_t = clock.t
     for rec in modem.ModemDecoder().feed(b"Command 'ATRX2' not found\r\n", clock.t):
-        d._on_record("modem")(rec)
+        pinger.handle(rec)
     h = d.health()
     assert h["pings"]["refused"] == 1 and h["pings"]["last"] == ["refused"]
-    assert d.ping_t is None  # the ping is over: the next one may go
+    assert pinger.ping_t is None  # the ping is over: the next one may go
 
 
 def test_a_modem_stuck_outside_command_mode_is_not_ok(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
-    d.modem_session.opened(clock.t)  # the port opened; the modem never answers the escape
+    pinger = d.devices["modem"]
+    assert isinstance(pinger, ModemPinger)
+    pinger.session.opened(clock.t)  # the port opened; the modem never answers the escape
     _navigate(d, clock, 12.0)
     h = d.health()
     assert not h["ok"] and any("not in command mode" in p for p in h["degraded"])
@@ -231,21 +238,22 @@ def test_a_modem_stuck_outside_command_mode_is_not_ok(tmp_path: Path) -> None:
 
 def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
-    port = d.devices["ahrs"].transport
+    unit = d.devices["ahrs"]
+    port = unit.transport
     opened: list[float] = []
-    port.on_open = lambda tr: opened.append(clock.t)  # type: ignore[union-attr]
+    unit.on_open = lambda tr: opened.append(clock.t)  # type: ignore[method-assign]
     port.health.last_rx = clock.t  # type: ignore[union-attr]
-    d.devices["ahrs"].info.update(firmware=1134, hard_iron=[0.0, 0.0, 0.0])  # it said who it is
+    unit.info.update(firmware=1134, hard_iron=[0.0, 0.0, 0.0])  # it said who it is
 
     async def main() -> None:
-        d._recover_ahrs()
+        unit.every_second(clock.t)
         assert port.written == []  # type: ignore[union-attr]
         clock.t += 11.0  # nothing from the AHRS since
-        d._recover_ahrs()
+        unit.every_second(clock.t)
         assert port.written == [ahrs.encode_soft_reset()]  # type: ignore[union-attr]
         await asyncio.sleep(1.1)
         assert opened  # the open sequence again
-        d._recover_ahrs()  # not again at once
+        unit.every_second(clock.t)  # not again at once
         assert len(port.written) == 1  # type: ignore[union-attr]
 
     asyncio.run(main())
@@ -256,14 +264,13 @@ def test_an_unanswered_firmware_probe_is_asked_again(tmp_path: Path) -> None:
     """A unit stalled when it was opened answers once it streams again: the probe is
     repeated until it does, and health is ok again then."""
     d, clock = _daemon(tmp_path)
-    d.devices["ahrs"].decoder = ahrs.AhrsDecoder()
-    port = d.devices["ahrs"].transport
-    port.on_open = lambda tr: None  # type: ignore[union-attr]
     st = d.devices["ahrs"]
+    assert isinstance(st, Ahrs)
+    port = st.transport
     st.t_probe = st.t_probe_sent = clock.t
     _navigate(d, clock, 4.0)
     port.health.last_rx = clock.t  # type: ignore[union-attr]
-    d._recover_ahrs()
+    st.every_second(clock.t)
     assert ahrs.encode_firmware_probe() in port.written  # type: ignore[union-attr]
-    d._on_record("ahrs")(ahrs.Firmware(clock.t, 1134))
+    st.handle(ahrs.Firmware(clock.t, 1134))
     assert not any("firmware probe" in p for p in d.health()["degraded"])

@@ -1,0 +1,169 @@
+"""What every device has: a port, a decoder, counters, and the health they add up to."""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+from collections.abc import Callable, Coroutine
+from typing import Any, Protocol
+
+from navd.config import SerialPortConfig
+from navd.daemon.health import RECENT_S, Vitals
+from navd.drivers.codec import DeviceError
+from navd.drivers.transport import SerialTransport
+from navd.schema import DeviceHealth
+
+# a burst of corrupt data: this many bad frames within the window is said in health
+CORRUPT_FRAMES = 3
+CORRUPT_BYTES = 64
+CORRUPT_WINDOW_S = 5.0
+SILENT_S = 3.0  # a streaming or polled device this long without a byte is said silent
+
+
+class Host(Protocol):
+    """What a device may ask of the daemon around it."""
+
+    def clock(self) -> float: ...
+
+    def feed(self, rec: Any) -> None: ...
+
+    @property
+    def vitals(self) -> Vitals: ...
+
+
+class Device:
+    """A serial device. Subclasses say what to send on open, what to poll, and what
+    their records mean (:meth:`on_record`)."""
+
+    name = ""
+    #: records a second navd asks of the device (None: it speaks when spoken to)
+    expected_rate_hz: float | None = None
+
+    def __init__(self, cfg: SerialPortConfig, host: Host, decoder: Any) -> None:
+        self.cfg = cfg
+        self.host = host
+        self.decoder = decoder
+        self.transport: SerialTransport | None = None
+        self.records = 0
+        self.recent: deque[float] = deque(maxlen=2000)
+        self.device_errors = 0  # the device answered with an error in place of a reading
+        self.t_device_error: float | None = None
+        self.last_device_error = ""
+        # what the device said of itself (firmware, serial number, calibration): in health
+        self.info: dict[str, Any] = {}
+        self.resets = 0
+        # (t, bad frames, skipped bytes) at each health tick: what the last seconds brought
+        self.bad_history: deque[tuple[float, int, int]] = deque()
+
+    # -- what subclasses say ----------------------------------------------------------
+    def on_open(self, tr: SerialTransport) -> None:
+        """Sent each time the port opens (a device may have lost power since)."""
+
+    def on_record(self, rec: object) -> None:
+        raise NotImplementedError
+
+    def tasks(self) -> list[Coroutine[Any, Any, None]]:
+        """Coroutines that run while the daemon does (polls, pings)."""
+        return []
+
+    def on_tick(self, now: float) -> None:
+        """Called at the filter rate, before the filter steps."""
+
+    def every_second(self, now: float) -> None:
+        """Called once a second, before health is judged."""
+
+    def own_problems(self, now: float) -> list[str]:
+        """What is wrong that only this kind of device can say."""
+        return []
+
+    # -- the same for all --------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        tr = self.transport
+        return tr is not None and tr.health.connected
+
+    def write(self, data: bytes) -> bool:
+        tr = self.transport
+        return tr is not None and tr.health.connected and tr.write(data)
+
+    def handle(self, rec: object) -> None:
+        """A record decoded from this device's bytes (the transport's callback)."""
+        if isinstance(rec, DeviceError):
+            # an error answer is not a reading: counted apart, and shown in health
+            self.device_errors += 1
+            self.t_device_error = self.host.clock()
+            self.last_device_error = rec.what
+            if rec.send and self.transport is not None:
+                self.transport.write(rec.send)  # e.g. a Keller that forgot F48 after a blip
+            return
+        self.records += 1
+        self.recent.append(self.host.clock())
+        self.on_record(rec)
+
+    async def poll(self, hz: float, request: Callable[[], bytes]) -> None:
+        """Ask ``request()`` at ``hz`` on absolute deadlines, while the port is open."""
+        period = 1.0 / hz
+        nxt = self.host.clock()
+        while True:
+            nxt += period
+            await asyncio.sleep(max(0.0, nxt - self.host.clock()))
+            if self.connected:
+                self.write(request())
+
+    def recent_bad(self, now: float) -> tuple[int, int]:
+        """Bad frames (checksum or content) and skipped bytes in the last ``CORRUPT_WINDOW_S``."""
+        stats = self.decoder.stats
+        self.bad_history.append((now, stats.bad_checksum + stats.bad_frame, stats.skipped_bytes))
+        while len(self.bad_history) > 1 and now - self.bad_history[1][0] >= CORRUPT_WINDOW_S:
+            self.bad_history.popleft()
+        _, bad0, skipped0 = self.bad_history[0]
+        _, bad1, skipped1 = self.bad_history[-1]
+        return bad1 - bad0, skipped1 - skipped0
+
+    def health(self, now: float) -> DeviceHealth:
+        hl = self.transport.health if self.transport else None
+        stats = self.decoder.stats
+        return DeviceHealth(
+            connected=bool(hl and hl.connected),
+            last_rx_age_s=None if not hl or hl.last_rx is None else round(now - hl.last_rx, 3),
+            rate_hz=sum(1 for x in self.recent if now - x <= 5.0) / 5.0,
+            records=self.records,
+            bad_checksum=stats.bad_checksum,
+            bad_frame=stats.bad_frame,
+            skipped_bytes=stats.skipped_bytes,
+            reconnects=hl.reconnects if hl else 0,
+            opens=hl.opens if hl else 0,
+            read_errors=hl.read_errors if hl else 0,
+            write_errors=hl.write_errors if hl else 0,
+            last_error=hl.last_error if hl else "",
+            device_errors=self.device_errors,
+            resets=self.resets,
+            last_device_error=self.last_device_error,
+            info=dict(self.info),
+            internal_errors=dict(hl.internal_errors) if hl else {},
+        )
+
+    def problems(self, now: float, h: DeviceHealth) -> list[str]:
+        """Everything health should say of this device, given its ``health(now)``."""
+        n = self.name
+        out = [] if h.connected else [f"{n} disconnected"]
+        bad, skipped = self.recent_bad(now)
+        if bad >= CORRUPT_FRAMES or skipped >= CORRUPT_BYTES:
+            out.append(
+                f"{n}: {bad} corrupt frames, {skipped} bytes skipped in {CORRUPT_WINDOW_S:g} s"
+            )
+        expected = self.expected_rate_hz
+        age = h.last_rx_age_s
+        if expected is not None and age is not None and age > SILENT_S:
+            out.append(f"{n}: silent for {age:.0f} s")
+        if expected is not None and h.rate_hz > 2.0 * expected + 1.0:
+            out.append(f"{n}: {h.rate_hz:.0f} records/s, {expected:g} expected")
+        out += self.own_problems(now)
+        if self.t_device_error is not None and now - self.t_device_error <= RECENT_S:
+            out.append(
+                f"{n}: device error answers ({self.device_errors}, last: {self.last_device_error})"
+            )
+        hl = self.transport.health if self.transport else None
+        if hl and hl.last_internal_error and now - hl.last_internal_error <= RECENT_S:
+            out.append(f"{n}: internal errors {hl.internal_errors}")
+        return out

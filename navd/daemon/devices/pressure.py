@@ -1,0 +1,41 @@
+"""The Keller PA-30X: initialised and asked its serial number on every open, polled
+for pressure; its temperature goes to health."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Coroutine
+from typing import Any
+
+from navd.config import PressureDevice
+from navd.daemon.devices.base import Device, Host
+from navd.drivers import keller
+from navd.drivers.transport import SerialTransport
+from navd.records import Pressure
+
+
+class PressureSensor(Device):
+    name = "pressure"
+
+    def __init__(self, cfg: PressureDevice, host: Host) -> None:
+        super().__init__(cfg, host, keller.KellerDecoder(cfg.address, cfg.local_echo))
+        self.poll_hz = cfg.poll_hz
+        self.expected_rate_hz = cfg.poll_hz
+        self.temperature_c: float | None = None
+
+    def on_open(self, tr: SerialTransport) -> None:
+        tr.write(self.decoder.request_init())
+        tr.write(self.decoder.request_serial())  # which sensor: in health and the journal
+
+    def tasks(self) -> list[Coroutine[Any, Any, None]]:
+        return [self.poll(self.poll_hz, lambda: self.decoder.request(keller.CH_PRESSURE))]
+
+    def on_record(self, rec: object) -> None:
+        if isinstance(rec, Pressure):
+            self.host.feed(rec)
+        elif isinstance(rec, keller.Temperature):
+            self.temperature_c = rec.c
+        elif isinstance(rec, keller.SerialNumber):
+            if self.info.get("serial_number") != rec.number:
+                logging.getLogger("navd").info("%s: serial number %d", self.name, rec.number)
+            self.info["serial_number"] = rec.number
