@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from navd.filter.lsfix import Fix
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,11 +86,31 @@ class History:
             s.x_filt, s.P_filt = x, P
 
 
+@dataclass(frozen=True, slots=True)
+class Corrections:
+    """Sensor errors a mode estimates beside position and current."""
+
+    heading_bias: float  # radians, added to the true heading
+    speed_scale: float  # times the speed from the RPM map
+    beacon_offset_n: float  # m, the error of the position the beacon reports
+    beacon_offset_e: float
+
+
 class NavFilter(Protocol):
-    """What the navigator needs of a filter mode."""
+    """What the navigator needs of a filter mode.
+
+    The modes differ in what they do with a range, and say so here rather than the
+    navigator testing which mode it has.
+    """
 
     initialised: bool
     history: History
+    #: the range as the modem computed it, not re-derived with the water's sound speed
+    ranges_as_reported: bool
+    #: ranges are fused only while there is no fresh GPS fix (seed 000 Algorithm 2)
+    ranges_only_without_gps: bool
+    #: normalised innovation squared of the last range (NaN: the mode has no gate)
+    last_nis: float
 
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None: ...
 
@@ -98,6 +121,12 @@ class NavFilter(Protocol):
     def range_update(self, m: RangeMeas) -> GateDecision: ...
 
     def estimate(self) -> StateEstimate: ...
+
+    def apply_fix(self, fix: Fix) -> None:
+        """An acoustic least-squares fix from the virtual net: a mode may take it."""
+
+    def corrections(self) -> Corrections | None:
+        """The sensor errors the mode estimates, if it estimates any."""
 
     # a mode's state is its own (an array, or an array with a reference point)
     def state_diff(self, a: Any, b: Any) -> np.ndarray: ...

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from navd import geodesy
+from navd.filter.deadreckoning import DeadReckoner
 
 
 def rotation_body_to_ned(roll: float, pitch: float, yaw: float) -> list[list[float]]:
@@ -89,8 +89,7 @@ class DvlDeadReckoner:
     def __init__(self, spec: DvlSpec, declination: float) -> None:
         self.spec = spec
         self.decl = declination
-        self.lat: float | None = None
-        self.lon: float | None = None
+        self.track = DeadReckoner()
         self.t: float | None = None
         self.v: tuple[float, float, float] | None = None  # accepted body velocity
         self.att = (0.0, 0.0, 0.0)  # roll, pitch, true yaw (radians)
@@ -100,8 +99,17 @@ class DvlDeadReckoner:
         self.pred_error_m = 0.0
         self.error_rate_mps = 0.0
 
+    @property
+    def lat(self) -> float | None:
+        return self.track.lat
+
+    @property
+    def lon(self) -> float | None:
+        return self.track.lon
+
     def reset(self, lat: float, lon: float, t: float) -> None:
-        self.lat, self.lon, self.t = lat, lon, t
+        self.track.reset(lat, lon)
+        self.t = t
         self.distance_m = self.pred_error_m = 0.0
 
     def attitude(self, roll_deg: float, pitch_deg: float, yaw_mag_deg: float) -> None:
@@ -144,7 +152,7 @@ class DvlDeadReckoner:
         R = rotation_body_to_ned(*self.att)
         vn = sum(R[0][k] * self.v[k] for k in range(3))
         ve = sum(R[1][k] * self.v[k] for k in range(3))
-        self.lat, self.lon = geodesy.offset_position(self.lat, self.lon, vn * dt, ve * dt, hd)
+        self.track.move(vn * dt, ve * dt, hd)
         self.distance_m += math.hypot(vn, ve) * dt
         s = self.spec
         dv = tuple(s.velocity_error_frac * abs(x) for x in self.v)

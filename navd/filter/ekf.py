@@ -47,8 +47,16 @@ import numpy as np
 from navd import geodesy
 from navd.config import NoiseConfig
 from navd.filter import reacquire
-from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate, joseph_update
+from navd.filter.common import (
+    Corrections,
+    GateDecision,
+    History,
+    RangeMeas,
+    StateEstimate,
+    joseph_update,
+)
 from navd.filter.integrity import chi2_quantile
+from navd.filter.lsfix import Fix
 
 N_STATES = 8
 _EYE = np.eye(N_STATES)
@@ -64,6 +72,9 @@ _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
 
 
 class RangeEKF:
+    ranges_as_reported = False
+    ranges_only_without_gps = False
+
     def __init__(
         self,
         noise: NoiseConfig,
@@ -413,6 +424,13 @@ class RangeEKF:
 
     def estimate(self) -> StateEstimate:
         return self.estimate_of(self.x, self.P)
+
+    def apply_fix(self, fix: Fix) -> None:
+        """Ranges reach this mode one by one; the net's fix only starts it without GPS."""
+
+    def corrections(self) -> Corrections | None:
+        x = self.x
+        return Corrections(float(x[4]), float(x[5]), float(x[6]), float(x[7]))
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         e, n, _ = geodesy.enu_offset(b[0], b[1], 0.0, a[0], a[1], 0.0)

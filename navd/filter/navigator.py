@@ -10,8 +10,7 @@ and every tick, so when a record falls between ticks does not change the answer.
 from __future__ import annotations
 
 import math
-import statistics
-from collections import Counter, deque
+from collections import Counter
 from dataclasses import replace
 from typing import Any
 
@@ -24,6 +23,7 @@ from navd.filter import compass
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import GateDecision, NavFilter, RangeMeas, StateEstimate
 from navd.filter.deadreckoning import DeadReckoner
+from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import Integrity
@@ -95,7 +95,6 @@ class Navigator:
         nav = cfg.navigation
         self.cfg = cfg
         self.nav = nav
-        self.thesis = nav.filter == "thesis"
         self.filter: NavFilter = make_filter(cfg)
         self.filter.history.enabled = keep_history
         self.dr = DeadReckoner()
@@ -112,7 +111,6 @@ class Navigator:
         )
         self._dvl_seen = False
         self.net = VirtualNet()
-        self._rel_n = self._rel_e = 0.0
         self.beacons = BeaconResolver(cfg.beacons, nav.gate)
         self.sound = nav.sound_speed.model_obj()
         self.decl = math.radians(nav.magnetic_declination_deg)
@@ -129,15 +127,13 @@ class Navigator:
         self._t_heading = -math.inf
         self._rpm: float | None = None
         self._t_rpm = -math.inf
-        self._depth = 0.0
-        self._t_depth = -math.inf
+        self.depth = DepthGauge(cfg.site)
         self._alt_sum = 0.0
         self._alt_n = 0
         self._t_gps: float | None = None
         self._t_gps_streak = -math.inf
         self._tick_steps: list[tuple[int, Estimate]] = []
         self._smoothed_done: list[dict[str, Any]] = []
-        self._p_surface: deque[float] = deque(maxlen=50)
 
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
@@ -258,11 +254,9 @@ class Navigator:
 
     def _propagate_to(self, t: float) -> None:
         if self._t_filter is not None and t > self._t_filter:
-            # relative dead reckoning for the virtual net: needs no absolute position
+            # the virtual net's relative track: needs no absolute position
             heading, speed = self._speed_heading(t)
-            d = speed * (t - self._t_filter)
-            self._rel_n += d * math.cos(heading)
-            self._rel_e += d * math.sin(heading)
+            self.net.move(speed * (t - self._t_filter), heading)
         if self._t_filter is None or not self.filter.initialised:
             self._t_filter = t
             return
@@ -270,7 +264,7 @@ class Navigator:
         if remaining <= 0.0:
             return
         heading, speed = self._speed_heading(t)
-        hd = self.surface_altitude - self._depth
+        hd = self.surface_altitude - self.depth.m
         # Long gaps (a log with a hole) are crossed in steps of one tick.
         n = max(1, math.ceil(remaining / self.tick_dt - 1e-9))
         step = remaining / n
@@ -294,17 +288,10 @@ class Navigator:
         self._rpm, self._t_rpm = rec.rpm, rec.t
 
     def _on_depth(self, rec: Depth) -> None:
-        self._depth, self._t_depth = rec.m, rec.t
+        self.depth.depth(rec.t, rec.m)
 
     def _on_pressure(self, rec: Pressure) -> None:
-        site = self.cfg.site
-        if site.surface_pressure_from_gps and self._gps_fresh(rec.t):
-            # GPS has a fix, so the vehicle is at the surface: this is the zero of depth
-            # (weather and sensor offset included), measured before every dive
-            self._p_surface.append(rec.bar)
-        p0 = statistics.median(self._p_surface) if self._p_surface else site.surface_pressure_bar
-        self._depth = (rec.bar - p0) * 1e5 / (site.water_density_kgm3 * site.gravity_mps2)
-        self._t_depth = rec.t
+        self.depth.pressure(rec.t, rec.bar, surfaced=self._gps_fresh(rec.t))
 
     def _on_velocity(self, rec: Velocity) -> None:
         # DVL dead reckoning runs beside the range filter, with its predicted error
@@ -313,7 +300,7 @@ class Navigator:
             self.counters["dvl_spikes"] += 1
 
     def _at_surface(self) -> bool:
-        return self._depth < self.nav.surface_depth_m
+        return self.depth.m < self.nav.surface_depth_m
 
     def _gps_fresh(self, t: float) -> bool:
         return self._t_gps is not None and t - self._t_gps <= _GPS_FRESH_S
@@ -326,7 +313,7 @@ class Navigator:
             self.counters["gps_poor_hdop"] += 1
             return
         if not self._at_surface():
-            if rec.t - self._t_depth <= _DEPTH_TRUST_S:
+            if rec.t - self.depth.t <= _DEPTH_TRUST_S:
                 self.counters["gps_while_submerged"] += 1
                 return
             self.counters["gps_with_stale_depth"] += 1
@@ -342,7 +329,7 @@ class Navigator:
             # just after surfacing: the receiver's own HDOP may not yet show how poor it is
             std = max(std, self.nav.gps.warmup_std_m)
         lat, lon = math.radians(rec.lat), math.radians(rec.lon)
-        hd = self.surface_altitude - self._depth
+        hd = self.surface_altitude - self.depth.m
         if not self.filter.initialised:
             self.filter.initialise(lat, lon, std, rec.t)
             self._t_filter = rec.t
@@ -370,11 +357,11 @@ class Navigator:
         out.beacon_lat = math.degrees(fix.lat)
         out.beacon_lon = math.degrees(fix.lon)
         out.beacon_depth = fix.depth
-        c_water = self.sound.at(0.5 * (self._depth + fix.depth))
+        c_water = self.sound.at(0.5 * (self.depth.m + fix.depth))
         if isinstance(rec, TravelTime):
             rng = travel_time_to_range(rec.twtt_s, c_water, fix.turnaround_s)
-        elif self.thesis:
-            rng = rec.m  # the thesis uses the modem's range as reported
+        elif self.filter.ranges_as_reported:
+            rng = rec.m
         elif rec.twtt_s is not None:
             # the modem's own round trip (its turnaround already taken out): right
             # whatever sound speed the modem was set to
@@ -387,8 +374,8 @@ class Navigator:
         self._to_net(rec.t, fix, rng)
         if not self.filter.initialised:
             return refuse("not_initialised")
-        if self.thesis and self._gps_fresh(rec.t):
-            return refuse("gps_available")  # Algorithm 2 ranges only when GPS is not
+        if self.filter.ranges_only_without_gps and self._gps_fresh(rec.t):
+            return refuse("gps_available")
         h = self.surface_altitude
         meas = RangeMeas(
             t=rec.t,
@@ -398,13 +385,13 @@ class Navigator:
             beacon_lat=fix.lat,
             beacon_lon=fix.lon,
             beacon_hd=h - fix.depth,
-            vehicle_hd=h - self._depth,
+            vehicle_hd=h - self.depth.m,
             std_m=self.nav.noise.range_std_m,
             beacon_position_std_m=fix.position_std_m,
             beacon_position_corr_s=fix.position_corr_s,
         )
         d: GateDecision = self.filter.range_update(meas)
-        self.integrity.range(d.accepted, getattr(self.filter, "last_nis", math.nan))
+        self.integrity.range(d.accepted, self.filter.last_nis)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if not d.accepted:
             self.counters[f"range_{d.reason}"] += 1
@@ -418,13 +405,13 @@ class Navigator:
         """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
         std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m)
         h = self.surface_altitude
-        r = NetRange(t, fix.lat, fix.lon, h - fix.depth, rng, std, self._rel_n, self._rel_e)
+        r = NetRange(t, fix.lat, fix.lon, h - fix.depth, rng, std, self.net.rel_n, self.net.rel_e)
         guess = None
         if self.filter.initialised:
             est = self.filter.estimate()
             guess = (est.lat, est.lon)
-        lsfix = self.net.add(r, h - self._depth, guess)
-        if lsfix is not None and isinstance(self.filter, VlblMode) and self.filter.initialised:
+        lsfix = self.net.add(r, h - self.depth.m, guess)
+        if lsfix is not None and self.filter.initialised:
             self.filter.apply_fix(lsfix)
         if lsfix is not None and not self.filter.initialised and self._t_gps is None:
             # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
@@ -436,11 +423,11 @@ class Navigator:
     # -- outputs -----------------------------------------------------------------------
     def input_ages(self, t: float) -> dict[str, float | None]:
         """Seconds since the last heading, RPM and depth (None: never seen)."""
-        ages = {"heading": self._t_heading, "rpm": self._t_rpm, "depth": self._t_depth}
+        ages = {"heading": self._t_heading, "rpm": self._t_rpm, "depth": self.depth.t}
         return {k: (t - v if math.isfinite(v) else None) for k, v in ages.items()}
 
     def mode(self, t: float) -> str:
-        depth_stale = t - self._t_depth > _DEPTH_TRUST_S
+        depth_stale = t - self.depth.t > _DEPTH_TRUST_S
         if not self._at_surface() and not (depth_stale and self._gps_fresh(t)):
             return "submerged"
         if self._gps_fresh(t) and t - self._t_gps_streak >= self.nav.gps.warmup_s:
@@ -455,19 +442,19 @@ class Navigator:
         std_max = math.sqrt(max(0.0, _largest_eig(est.var_n, est.var_e, est.cov_ne)))
         integrity = self.integrity.assess(std_max)
         r = Estimate(
-            round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self._depth, self.mode(t), integrity
+            round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.depth.m, self.mode(t), integrity
         )
         _fill(r, est)
         if self.integrity.reason:
             r.integrity_reason = self.integrity.reason
-        if isinstance(self.filter, RangeEKF):
-            x = self.filter.x
-            r.heading_bias_deg = math.degrees(float(x[4]))
-            r.speed_scale = float(x[5])
-            r.beacon_offset_n = float(x[6])
-            r.beacon_offset_e = float(x[7])
-            heading += float(x[4])
-            speed *= float(x[5])
+        c = self.filter.corrections()
+        if c is not None:
+            r.heading_bias_deg = math.degrees(c.heading_bias)
+            r.speed_scale = c.speed_scale
+            r.beacon_offset_n = c.beacon_offset_n
+            r.beacon_offset_e = c.beacon_offset_e
+            heading += c.heading_bias
+            speed *= c.speed_scale
         r.heading_deg = math.degrees(geodesy.wrap_lon(heading)) % 360.0
         r.speed_mps = speed
         if self.dr.lat is not None and self.dr.lon is not None:

@@ -17,7 +17,8 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.lsfix import Fix
 
 
 def metres_to_rad2(lat: float, var_n_m2: float, var_e_m2: float) -> tuple[float, float]:
@@ -101,6 +102,10 @@ def accept_or_reject(expected_m: float, measured_m: float, r_e: float) -> bool:
 class ThesisEKF:
     """Algorithm 2 of seed 000."""
 
+    ranges_as_reported = True  # the thesis ranges with the modem's own sound speed
+    ranges_only_without_gps = True  # Algorithm 2 line 13
+    last_nis = math.nan  # Algorithm 1 gates on the residual alone
+
     def __init__(
         self,
         position_init_std_m: float,
@@ -116,6 +121,12 @@ class ThesisEKF:
         self.P = np.eye(4)
         self.initialised = False
         self.history = History()
+
+    def apply_fix(self, fix: Fix) -> None:
+        """The thesis uses no acoustic fix."""
+
+    def corrections(self) -> Corrections | None:
+        return None
 
     def _metres_cov(self, lat: float, pos_var: float, cur_var: float) -> np.ndarray:
         pn, pe = metres_to_rad2(lat, pos_var, pos_var)

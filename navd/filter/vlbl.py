@@ -53,6 +53,15 @@ class VirtualNet:
         self.t_fix: float | None = None
         self.outliers = 0
         self.fixes = 0
+        # where the vehicle is relative to where it started, by dead reckoning: the net
+        # moves old ranges along it, and needs no absolute position
+        self.rel_n = 0.0
+        self.rel_e = 0.0
+
+    def move(self, distance_m: float, heading: float) -> None:
+        """The vehicle went ``distance_m`` along ``heading`` (radians from true north)."""
+        self.rel_n += distance_m * math.cos(heading)
+        self.rel_e += distance_m * math.sin(heading)
 
     def clear(self) -> None:
         self.ranges.clear()

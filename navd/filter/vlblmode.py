@@ -14,11 +14,15 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
 from navd.filter.lsfix import Fix
 
 
 class VlblMode:
+    ranges_as_reported = False
+    ranges_only_without_gps = False
+    last_nis = math.nan  # ranges act through the net's fixes, not a gate
+
     def __init__(self, drift_mps: float = 0.1) -> None:
         self.drift = drift_mps  # position uncertainty growth between fixes
         self.x = np.zeros(2)
@@ -59,6 +63,9 @@ class VlblMode:
         self.x = np.array([fix.lat, fix.lon])
         self.P = np.array(fix.cov_ne, dtype=float)
         self.history.correct(self.x.copy(), self.P.copy())
+
+    def corrections(self) -> Corrections | None:
+        return None
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
         return StateEstimate(
