@@ -14,7 +14,7 @@ import pytest
 from navd.config import ConfigError, config_from_dict
 from navd.drivers import ahrs, castle, gps, keller, modem
 from navd.drivers.codec import DeviceError
-from navd.filter.navigator import _gps_std
+from navd.filter.gpsfix import fix_std as _gps_std
 from navd.hil.emulators.ahrs import AhrsEmulator
 from navd.hil.emulators.castle import CastleEmulator
 from navd.hil.emulators.keller import KellerEmulator

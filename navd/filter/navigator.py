@@ -26,6 +26,7 @@ from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
+from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes
 from navd.filter.integrity import Integrity
 from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
@@ -50,14 +51,8 @@ from navd.records import (
 )
 from navd.schema import Estimate, RangeDecision, to_dict
 
-_GPS_FRESH_S = 2.0  # a fix this recent means "GPS available" (Algorithm 2, line 13)
-_GPS_NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
 _FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
 _TICK_SLACK_S = 1e-6  # far below a tick (0.01 s at 100 Hz), far above float rounding
-# Depth older than this is not trusted to refuse a GPS fix: a fix can only come with
-# the antenna out of the water, so a stalled pressure sensor must not keep the
-# vehicle "submerged" after it has surfaced.
-_DEPTH_TRUST_S = 5.0
 
 
 def make_filter(cfg: Config) -> NavFilter:
@@ -74,20 +69,6 @@ def make_filter(cfg: Config) -> NavFilter:
         )
     g = nav.gate
     return RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
-
-
-# A real-time kinematic receiver's horizontal error (fixed, float): far below an
-# autonomous fix, whatever the configured std says
-_RTK_STD_M = {4: 0.05, 5: 0.5}
-
-
-def _gps_std(std_m: float, hdop: float | None, quality: int | None) -> float:
-    """A fix's horizontal std: the configured std at HDOP 1, grown with HDOP (the
-    range error times the geometry's dilution); an RTK fix gets its own."""
-    std = std_m * max(1.0, hdop or 1.0)
-    if quality in _RTK_STD_M:
-        std = min(std, _RTK_STD_M[quality] * max(1.0, hdop or 1.0))
-    return std
 
 
 class Navigator:
@@ -128,10 +109,7 @@ class Navigator:
         self._rpm: float | None = None
         self._t_rpm = -math.inf
         self.depth = DepthGauge(cfg.site)
-        self._alt_sum = 0.0
-        self._alt_n = 0
-        self._t_gps: float | None = None
-        self._t_gps_streak = -math.inf
+        self.gps = GpsFixes(nav, cfg.site)
         self._tick_steps: list[tuple[int, Estimate]] = []
         self._smoothed_done: list[dict[str, Any]] = []
 
@@ -184,7 +162,7 @@ class Navigator:
         self.dr = DeadReckoner()
         self._tick_k = None
         self._t_filter = None
-        self._t_gps = None
+        self.gps.forget()
 
     def _on_reset(self, rec: Reset) -> None:
         self.restart("command")
@@ -222,9 +200,7 @@ class Navigator:
 
     @property
     def surface_altitude(self) -> float:
-        if self.cfg.site.surface_altitude_m is not None:
-            return self.cfg.site.surface_altitude_m
-        return self._alt_sum / self._alt_n if self._alt_n else 0.0
+        return self.gps.surface_altitude
 
     # -- time --------------------------------------------------------------------------
     def _ticks_until(self, t: float, inclusive: bool) -> list[dict[str, Any]]:
@@ -291,7 +267,7 @@ class Navigator:
         self.depth.depth(rec.t, rec.m)
 
     def _on_pressure(self, rec: Pressure) -> None:
-        self.depth.pressure(rec.t, rec.bar, surfaced=self._gps_fresh(rec.t))
+        self.depth.pressure(rec.t, rec.bar, surfaced=self.gps.fresh(rec.t))
 
     def _on_velocity(self, rec: Velocity) -> None:
         # DVL dead reckoning runs beside the range filter, with its predicted error
@@ -302,32 +278,12 @@ class Navigator:
     def _at_surface(self) -> bool:
         return self.depth.m < self.nav.surface_depth_m
 
-    def _gps_fresh(self, t: float) -> bool:
-        return self._t_gps is not None and t - self._t_gps <= _GPS_FRESH_S
-
     def _on_gps(self, rec: Gps) -> None:
-        if rec.fix == 0 or rec.lat is None or rec.lon is None:
-            self.counters["gps_no_fix"] += 1
+        std, said = self.gps.judge(rec, self._at_surface(), self.depth.t)
+        for c in said:
+            self.counters[c] += 1
+        if std is None or rec.lat is None or rec.lon is None:
             return
-        if rec.hdop is not None and rec.hdop > self.nav.gps.max_hdop:
-            self.counters["gps_poor_hdop"] += 1
-            return
-        if not self._at_surface():
-            if rec.t - self.depth.t <= _DEPTH_TRUST_S:
-                self.counters["gps_while_submerged"] += 1
-                return
-            self.counters["gps_with_stale_depth"] += 1
-        if self._t_gps is None or rec.t - self._t_gps > _GPS_NEW_STREAK_S:
-            self._t_gps_streak = rec.t
-        self._t_gps = rec.t
-        if rec.alt is not None:
-            self._alt_sum += rec.alt
-            self._alt_n += 1
-        warm = rec.t - self._t_gps_streak < self.nav.gps.warmup_s
-        std = _gps_std(self.nav.noise.gps_std_m, rec.hdop, rec.quality)
-        if warm and rec.quality not in _RTK_STD_M:
-            # just after surfacing: the receiver's own HDOP may not yet show how poor it is
-            std = max(std, self.nav.gps.warmup_std_m)
         lat, lon = math.radians(rec.lat), math.radians(rec.lon)
         hd = self.surface_altitude - self.depth.m
         if not self.filter.initialised:
@@ -374,7 +330,7 @@ class Navigator:
         self._to_net(rec.t, fix, rng)
         if not self.filter.initialised:
             return refuse("not_initialised")
-        if self.filter.ranges_only_without_gps and self._gps_fresh(rec.t):
+        if self.filter.ranges_only_without_gps and self.gps.fresh(rec.t):
             return refuse("gps_available")
         h = self.surface_altitude
         meas = RangeMeas(
@@ -413,7 +369,7 @@ class Navigator:
         lsfix = self.net.add(r, h - self.depth.m, guess)
         if lsfix is not None and self.filter.initialised:
             self.filter.apply_fix(lsfix)
-        if lsfix is not None and not self.filter.initialised and self._t_gps is None:
+        if lsfix is not None and not self.filter.initialised and self.gps.t_last is None:
             # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
             std0 = math.sqrt(max(0.0, float(np.linalg.eigvalsh(lsfix.cov_ne)[-1])))
             self.filter.initialise(lsfix.lat, lsfix.lon, max(std0, 1.0), t)
@@ -427,10 +383,10 @@ class Navigator:
         return {k: (t - v if math.isfinite(v) else None) for k, v in ages.items()}
 
     def mode(self, t: float) -> str:
-        depth_stale = t - self.depth.t > _DEPTH_TRUST_S
-        if not self._at_surface() and not (depth_stale and self._gps_fresh(t)):
+        depth_stale = t - self.depth.t > DEPTH_TRUST_S
+        if not self._at_surface() and not (depth_stale and self.gps.fresh(t)):
             return "submerged"
-        if self._gps_fresh(t) and t - self._t_gps_streak >= self.nav.gps.warmup_s:
+        if self.gps.warmed_up(t):
             return "surface"
         return "surfacing"
 

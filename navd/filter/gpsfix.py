@@ -1,0 +1,84 @@
+"""Which GPS fixes the filter may use, and how far to trust each.
+
+A fix counts only with the antenna out of the water (depth says so, or depth is too
+old to say otherwise), at a usable HDOP; its std grows with HDOP, an RTK fix has its
+own, and a fix just after surfacing is held to a warm-up floor because the receiver's
+HDOP does not yet show how poor it is.  The fixes' mean altitude is the surface's.
+"""
+
+from __future__ import annotations
+
+import math
+
+from navd.config import NavigationConfig, SiteConfig
+from navd.records import Gps
+
+FRESH_S = 2.0  # a fix this recent means "GPS available" (seed 000 Algorithm 2, line 13)
+NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired
+# Depth older than this is not trusted to refuse a GPS fix: a fix can only come with
+# the antenna out of the water, so a stalled pressure sensor must not keep the
+# vehicle "submerged" after it has surfaced.
+DEPTH_TRUST_S = 5.0
+# A real-time kinematic receiver's horizontal error (fixed, float): far below an
+# autonomous fix, whatever the configured std says
+RTK_STD_M = {4: 0.05, 5: 0.5}
+
+
+def fix_std(std_m: float, hdop: float | None, quality: int | None) -> float:
+    """A fix's horizontal std: the configured std at HDOP 1, grown with HDOP (the
+    range error times the geometry's dilution); an RTK fix gets its own."""
+    std = std_m * max(1.0, hdop or 1.0)
+    if quality in RTK_STD_M:
+        std = min(std, RTK_STD_M[quality] * max(1.0, hdop or 1.0))
+    return std
+
+
+class GpsFixes:
+    def __init__(self, nav: NavigationConfig, site: SiteConfig) -> None:
+        self.nav = nav
+        self.site = site
+        self.t_last: float | None = None  # the last fix used
+        self.t_streak = -math.inf  # since when fixes have come without a gap
+        self._alt_sum = 0.0
+        self._alt_n = 0
+
+    def forget(self) -> None:
+        """A restart: the next fix starts the filter."""
+        self.t_last = None
+
+    def fresh(self, t: float) -> bool:
+        return self.t_last is not None and t - self.t_last <= FRESH_S
+
+    def warmed_up(self, t: float) -> bool:
+        return self.fresh(t) and t - self.t_streak >= self.nav.gps.warmup_s
+
+    @property
+    def surface_altitude(self) -> float:
+        if self.site.surface_altitude_m is not None:
+            return self.site.surface_altitude_m
+        return self._alt_sum / self._alt_n if self._alt_n else 0.0
+
+    def judge(
+        self, rec: Gps, at_surface: bool, t_depth: float
+    ) -> tuple[float | None, list[str]]:
+        """The std to fuse ``rec`` with (None: not used), and the counters it adds to."""
+        if rec.fix == 0 or rec.lat is None or rec.lon is None:
+            return None, ["gps_no_fix"]
+        if rec.hdop is not None and rec.hdop > self.nav.gps.max_hdop:
+            return None, ["gps_poor_hdop"]
+        said = []
+        if not at_surface:
+            if rec.t - t_depth <= DEPTH_TRUST_S:
+                return None, ["gps_while_submerged"]
+            said.append("gps_with_stale_depth")
+        if self.t_last is None or rec.t - self.t_last > NEW_STREAK_S:
+            self.t_streak = rec.t
+        self.t_last = rec.t
+        if rec.alt is not None:
+            self._alt_sum += rec.alt
+            self._alt_n += 1
+        warm = rec.t - self.t_streak < self.nav.gps.warmup_s
+        std = fix_std(self.nav.noise.gps_std_m, rec.hdop, rec.quality)
+        if warm and rec.quality not in RTK_STD_M:
+            std = max(std, self.nav.gps.warmup_std_m)
+        return std, said
