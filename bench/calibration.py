@@ -28,9 +28,10 @@ import yaml
 
 from bench.common import report
 from navd.analysis.score import read_jsonl, score
+from navd.config import deep_merge
 from navd.filter.compass import deviation_deg
 from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import deep_merge, write_mission
+from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 
 STEPS = ("as configured", "compass calibrated", "compass and speed calibrated")

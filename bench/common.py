@@ -4,13 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
+
+from navd.config import deep_merge
+
 
 def mode_config(mission_dir: Path, mode: str) -> Path:
-    """The mission's crew config with ``navigation.filter`` set (navigation is always present)."""
+    """The mission's crew config with ``navigation.filter`` set."""
     cfg = mission_dir / f"config-{mode}.yaml"
     if not cfg.exists():
-        text = (mission_dir / "config.yaml").read_text()
-        cfg.write_text(text.replace("navigation:\n", f"navigation:\n  filter: {mode}\n", 1))
+        crew = yaml.safe_load((mission_dir / "config.yaml").read_text()) or {}
+        cfg.write_text(yaml.safe_dump(deep_merge(crew, {"navigation": {"filter": mode}})))
     return cfg
 
 

@@ -9,31 +9,23 @@ them, so an unknown key, a wrong type, a non-finite or out-of-range value is a
 from __future__ import annotations
 
 import copy
-import math
-import reprlib
-import types
 import typing
-from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
 
+from navd import validation
 from navd.acoustics import SoundSpeed
+from navd.validation import Invalid, show
+from navd.validation import number as _num
 
 __all__ = ["ConfigError", "Config", "load_config", "config_from_dict", "Beacon", "build"]
 
 
-class ConfigError(Exception):
+class ConfigError(Invalid):
     """A configuration problem; ``str()`` is one line naming the file and key."""
-
-
-def _rng(lo: float | None = None, hi: float | None = None, gt: float | None = None) -> dict:
-    return {"lo": lo, "hi": hi, "gt": gt}
-
-
-def _num(default: float, **kw: float) -> Any:
-    return field(default=default, metadata=_rng(**kw))
 
 
 @dataclass(frozen=True, slots=True)
@@ -283,113 +275,19 @@ def _fail(path: str, msg: str) -> typing.NoReturn:
     raise ConfigError(f"{path}: {msg}")
 
 
-_SHOW = reprlib.Repr()
-_SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict = 1, 4, 4
-_SHOW.maxstring = _SHOW.maxother = _SHOW.maxlong = 40
-
-
-def _show(value: Any) -> str:
-    """A value as an error message shows it: bounded, whatever its size or nesting.
-
-    A YAML alias bomb is small as parsed (shared references) and astronomically large
-    when written out; the message must never write it out.
-    """
-    return _SHOW.repr(value)
-
-
-def _check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        _fail(path, f"expected a number, got {type(value).__name__} {_show(value)}")
-    try:
-        as_float = float(value)
-    except OverflowError:
-        _fail(path, f"must be finite, got an integer of {len(str(abs(value)))} digits")
-    if tp is int and not (isinstance(value, int) or as_float.is_integer()):
-        _fail(path, f"expected a whole number, got {value!r}")
-    if not math.isfinite(as_float):
-        _fail(path, f"must be finite, got {value!r}")
-    lo, hi, gt = meta.get("lo"), meta.get("hi"), meta.get("gt")
-    if lo is not None and value < lo:
-        _fail(path, f"must be >= {lo:g}, got {value!r}")
-    if hi is not None and value > hi:
-        _fail(path, f"must be <= {hi:g}, got {value!r}")
-    if gt is not None and value <= gt:
-        _fail(path, f"must be > {gt:g}, got {value!r}")
-    return int(value) if tp is int else float(value)
-
-
-def _convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
-    origin = typing.get_origin(tp)
-    if origin in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if value is None:
-            return None
-        return _convert(value, args[0], meta, path)
-    if origin is Literal:
-        choices = typing.get_args(tp)
-        if value not in choices:
-            _fail(path, f"must be one of {', '.join(map(str, choices))}, got {_show(value)}")
-        return value
-    if origin is list:
-        if not isinstance(value, list):
-            _fail(path, f"expected a list, got {type(value).__name__}")
-        (it,) = typing.get_args(tp)
-        return [_convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
-    if origin is dict:
-        if not isinstance(value, dict):
-            _fail(path, f"expected a mapping, got {type(value).__name__}")
-        _, vt = typing.get_args(tp)
-        out = {}
-        for k, v in value.items():
-            if not isinstance(k, str) or not k or not k.isprintable():
-                _fail(path, f"names must be non-empty printable strings, got {_show(k)}")
-            out[k] = _convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
-        return out
-    if isinstance(tp, type) and is_dataclass(tp):
-        return _build(tp, value, path)
-    if tp in (float, int):
-        return _check_number(value, tp, meta, path)
-    if tp is str:
-        if not isinstance(value, str):
-            _fail(path, f"expected a string, got {type(value).__name__} {_show(value)}")
-        return value
-    if tp is bool:
-        if not isinstance(value, bool):
-            _fail(path, f"expected true or false, got {_show(value)}")
-        return value
-    raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
-
-
-def _build(cls: type, data: Any, path: str) -> Any:
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        _fail(path or "(top level)", f"expected a mapping, got {type(data).__name__}")
-    hints = typing.get_type_hints(cls)
-    known = {f.name: f for f in fields(cls)}
-    for key in data:
-        if key not in known:
-            # a key is shown as written, or quoted when it holds what a line cannot
-            name = key if isinstance(key, str) and key.isprintable() else _show(key)
-            _fail(f"{path}.{name}" if path else name, "unknown key")
-    kwargs = {}
-    for name, f in known.items():
-        sub = f"{path}.{name}" if path else name
-        if name in data:
-            kwargs[name] = _convert(data[name], hints[name], f.metadata, sub)
-        elif f.default is MISSING and f.default_factory is MISSING:  # pragma: no cover
-            _fail(sub, "missing")
-    return cls(**kwargs)
-
-
 def build(cls: type, data: Any, path: str = "") -> Any:
     """Validate a mapping into the dataclass ``cls`` (used for scenario files too)."""
-    return _build(cls, data, path)
+    try:
+        return validation.build(cls, data, path)
+    except ConfigError:
+        raise
+    except Invalid as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def config_from_dict(data: Any) -> Config:
     """Validate a parsed YAML document into a :class:`Config`."""
-    cfg: Config = _build(Config, data, "")
+    cfg: Config = build(Config, data, "")
     for i, ep in enumerate(cfg.zenoh.listen):
         if "0.0.0.0" in ep or "[::]" in ep:
             # commands reach the vehicle through this: it listens on a named network only
@@ -413,7 +311,7 @@ def config_from_dict(data: Any) -> Config:
 
 class _DuplicateKey(Exception):
     def __init__(self, key: Any, line: int) -> None:
-        super().__init__(f"line {line}: duplicate key {_show(key)}")
+        super().__init__(f"line {line}: duplicate key {show(key)}")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

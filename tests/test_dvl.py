@@ -10,10 +10,10 @@ from conftest import mission
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import _ne_error
-from navd.config import config_from_dict
+from navd.config import config_from_dict, deep_merge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
 from navd.formats.mlog import MeasurementLog
-from navd.hil.sim_cli import crew_config, deep_merge
+from navd.hil.sim_cli import crew_config
 
 
 @pytest.mark.parametrize("att", [(0.0, 0.0, 0.3), (0.1, -0.2, 2.5), (-0.3, 0.25, -1.2)])

@@ -9,9 +9,9 @@ from conftest import mission
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
-from navd.config import config_from_dict
+from navd.config import config_from_dict, deep_merge
 from navd.formats.mlog import MeasurementLog
-from navd.hil.sim_cli import crew_config, deep_merge
+from navd.hil.sim_cli import crew_config
 from navd.records import TravelTime
 
 

@@ -10,10 +10,10 @@ from conftest import mission
 from navd import geodesy
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
-from navd.config import ConfigError, config_from_dict
+from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.filter.vlbl import NetRange, VirtualNet
 from navd.formats.mlog import MeasurementLog
-from navd.hil.sim_cli import crew_config, deep_merge
+from navd.hil.sim_cli import crew_config
 from navd.records import Gps
 
 

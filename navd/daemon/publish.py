@@ -24,13 +24,16 @@ import re
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import zenoh
 
 from navd.config import ZenohConfig
 from navd.formats import jsonlines
+from navd.records import SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION
+from navd.validation import Invalid, build, text
 
 _COMMAND_TIMEOUT_S = 2.0
 _JSON = zenoh.Encoding.APPLICATION_JSON
@@ -56,43 +59,42 @@ COMMAND_RATE_HZ = 2.0
 COMMAND_BURST = 5
 
 
-def _finite(v: Any) -> bool:
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        return False
-    try:
-        return math.isfinite(v)
-    except OverflowError:  # an integer of hundreds of digits
-        return False
+@dataclass(frozen=True, slots=True)
+class ResetCommand:
+    reason: str = text("", r"[^\x00-\x1f]{0,200}", "at most 200 printable characters")
+    force: bool = False  # a reset while submerged stops navigation until the next fix
+
+
+@dataclass(frozen=True, slots=True)
+class BeaconCommand:
+    # bounds of lat, lon and depth: navd.records.BOUNDS, as for every measured position
+    name: str = text("", BEACON_NAME.pattern, "1 to 32 letters, digits, '_', '.' or '-'")
+    lat: float = math.nan
+    lon: float = math.nan
+    depth: float = 0.0
+
+
+def _command(cls: type, body: dict[str, Any], required: tuple[str, ...] = ()) -> Any:
+    missing = [k for k in required if k not in body]
+    if missing:
+        raise Invalid(f"{missing[0]}: missing")
+    return build(cls, body)
 
 
 def validate_reset(body: dict[str, Any]) -> str | None:
-    extra = set(body) - {"reason", "force"}
-    if extra:
-        return f"unknown field {sorted(extra)[0]!r}"
-    if "reason" in body and not (isinstance(body["reason"], str) and len(body["reason"]) <= 200):
-        return "field 'reason' must be a string of at most 200 characters"
-    if "force" in body and not isinstance(body["force"], bool):
-        return "field 'force' must be true or false"
+    try:
+        _command(ResetCommand, body)
+    except Invalid as exc:
+        return str(exc)
     return None
 
 
 def validate_beacon(body: dict[str, Any]) -> str | None:
-    extra = set(body) - {"name", "lat", "lon", "depth"}
-    if extra:
-        return f"unknown field {sorted(extra)[0]!r}"
-    name = body.get("name")
-    if not isinstance(name, str) or not BEACON_NAME.fullmatch(name):
-        return "field 'name' must be 1 to 32 letters, digits, '_', '.' or '-'"
-    for key, lo, hi in (("lat", -90.0, 90.0), ("lon", -180.0, 180.0), ("depth", 0.0, 11000.0)):
-        if key == "depth" and key not in body:
-            continue
-        v = body.get(key)
-        if not _finite(v):
-            return f"field '{key}' must be a finite number"
-        assert isinstance(v, int | float)  # what _finite just checked
-        if not lo <= v <= hi:
-            return f"field '{key}'={v} outside [{lo:g}, {hi:g}]"
-    return None
+    try:
+        c: BeaconCommand = _command(BeaconCommand, body, ("name", "lat", "lon"))
+    except Invalid as exc:
+        return str(exc)
+    return implausible(SetBeacon(0.0, c.name, c.lat, c.lon, c.depth))
 
 
 class TokenBucket:

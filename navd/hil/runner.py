@@ -21,13 +21,13 @@ import math
 import signal
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 
-from navd.config import ConfigError, config_from_dict
+from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.formats import jsonlines
 from navd.hil.emulators.ahrs import AhrsEmulator
 from navd.hil.emulators.castle import CastleEmulator
@@ -36,14 +36,14 @@ from navd.hil.emulators.keller import KellerEmulator
 from navd.hil.emulators.modem import ModemEmulator
 from navd.hil.link import modem_range_fn
 from navd.hil.scenario import load_scenario
-from navd.hil.sim_cli import crew_config, deep_merge
+from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
 from navd.records import Depth, Gps, Heading, Rpm
+from navd.validation import Invalid, build, number
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under
-_DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
-_RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply", "error_reply")
-_ACTIONS = (
+FaultDevice = Literal["ahrs", "gps", "pressure", "motor", "modem"]
+FaultAction = Literal[
     "reconnect",
     "disconnect",
     "stall",
@@ -53,8 +53,23 @@ _ACTIONS = (
     "online",  # the modem falls into online (data) mode, as after a CONNECT
     "power_blip",  # the pressure sensor loses power and forgets its F48
     "flood",
-    *_RATE_ACTIONS,
-)
+    "garbage",
+    "bad_checksum",
+    "truncate",
+    "drop_reply",
+    "error_reply",
+]
+_RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply", "error_reply")
+_ONLY_ON = {"online": "modem", "power_blip": "pressure"}
+
+
+@dataclass(frozen=True, slots=True)
+class Fault:
+    t: float = number(math.nan)  # seconds into the mission; required
+    device: FaultDevice = "ahrs"
+    action: FaultAction = "reconnect"
+    # a probability for the rate actions, how many times each frame is sent for flood
+    value: float = number(0.0, lo=0.0, hi=1000.0)
 
 
 def check_faults(faults: Any) -> list[dict[str, Any]]:
@@ -63,31 +78,24 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
         return []
     if not isinstance(faults, list):
         raise ConfigError("faults: expected a list of {t, device, action, value}")
+    out = []
     for i, f in enumerate(faults):
         where = f"faults[{i}]"
-        if not isinstance(f, dict):
-            raise ConfigError(f"{where}: expected a mapping")
-        t = f.get("t")
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
-            raise ConfigError(f"{where}.t: expected a time in seconds, got {t!r}")
-        if f.get("device") not in _DEVICES:
-            raise ConfigError(f"{where}.device: expected one of {', '.join(_DEVICES)}")
-        if f.get("action") not in _ACTIONS:
-            raise ConfigError(f"{where}.action: expected one of {', '.join(_ACTIONS)}")
-        if f["action"] == "online" and f["device"] != "modem":
-            raise ConfigError(f"{where}.action: online is a modem fault")
-        if f["action"] == "power_blip" and f["device"] != "pressure":
-            raise ConfigError(f"{where}.action: power_blip is a pressure sensor fault")
-        v = f.get("value", 0.0)
-        if f["action"] == "flood" and (
-            isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 1000
-        ):
+        try:
+            if isinstance(f, dict) and "t" not in f:
+                raise Invalid(f"{where}.t: missing (seconds into the mission)")
+            fault: Fault = build(Fault, f, where)
+        except Invalid as exc:
+            raise ConfigError(str(exc)) from None
+        if _ONLY_ON.get(fault.action, fault.device) != fault.device:
+            raise ConfigError(f"{where}.action: {fault.action} is a {_ONLY_ON[fault.action]} fault")
+        v = fault.value
+        if fault.action == "flood" and not (v.is_integer() and v >= 1):
             raise ConfigError(f"{where}.value: expected how many times each frame is sent")
-        if f["action"] in _RATE_ACTIONS and (
-            isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0
-        ):
+        if fault.action in _RATE_ACTIONS and not v <= 1.0:
             raise ConfigError(f"{where}.value: expected a probability in [0, 1]")
-    return faults
+        out.append(asdict(fault))
+    return out
 
 
 def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, Any]:

@@ -1,0 +1,145 @@
+"""The one validation engine: a mapping checked into a dataclass, every error one line.
+
+The config, the scenario files, the autopilot's commands and the bench's fault
+schedules are all dataclasses whose field types and ``metadata`` bounds are their
+schema; :func:`build` walks them.  Measured values (from devices, logs and commands
+that carry a position) have their bounds in one table, ``navd.records.BOUNDS``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import reprlib
+import types
+import typing
+from dataclasses import MISSING, field, fields, is_dataclass
+from typing import Any, Literal
+
+__all__ = ["Invalid", "build", "number", "show", "text"]
+
+
+class Invalid(Exception):
+    """A value that does not fit its schema; ``str()`` names the key and says why."""
+
+
+def _fail(path: str, msg: str) -> typing.NoReturn:
+    raise Invalid(f"{path}: {msg}")
+
+
+def bounds(lo: float | None = None, hi: float | None = None, gt: float | None = None) -> dict:
+    return {"lo": lo, "hi": hi, "gt": gt}
+
+
+def number(default: float, **kw: float) -> Any:
+    """A numeric field with its allowed range: ``lo``, ``hi`` (inclusive), ``gt``."""
+    return field(default=default, metadata=bounds(**kw))
+
+
+def text(default: Any, pattern: str, what: str) -> Any:
+    """A string field that must match ``pattern`` whole; ``what`` says so in words."""
+    return field(default=default, metadata={"pattern": re.compile(pattern), "what": what})
+
+
+_SHOW = reprlib.Repr()
+_SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict = 1, 4, 4
+_SHOW.maxstring = _SHOW.maxother = _SHOW.maxlong = 40
+
+
+def show(value: Any) -> str:
+    """A value as an error message shows it: bounded, whatever its size or nesting.
+
+    A YAML alias bomb is small as parsed (shared references) and astronomically large
+    when written out; the message must never write it out.
+    """
+    return _SHOW.repr(value)
+
+
+def check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        _fail(path, f"expected a number, got {type(value).__name__} {show(value)}")
+    try:
+        as_float = float(value)
+    except OverflowError:
+        _fail(path, f"must be finite, got an integer of {len(str(abs(value)))} digits")
+    if tp is int and not (isinstance(value, int) or as_float.is_integer()):
+        _fail(path, f"expected a whole number, got {value!r}")
+    if not math.isfinite(as_float):
+        _fail(path, f"must be finite, got {value!r}")
+    lo, hi, gt = meta.get("lo"), meta.get("hi"), meta.get("gt")
+    if lo is not None and value < lo:
+        _fail(path, f"must be >= {lo:g}, got {value!r}")
+    if hi is not None and value > hi:
+        _fail(path, f"must be <= {hi:g}, got {value!r}")
+    if gt is not None and value <= gt:
+        _fail(path, f"must be > {gt:g}, got {value!r}")
+    return int(value) if tp is int else float(value)
+
+
+def convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value is None:
+            return None
+        return convert(value, args[0], meta, path)
+    if origin is Literal:
+        choices = typing.get_args(tp)
+        if value not in choices:
+            _fail(path, f"must be one of {', '.join(map(str, choices))}, got {show(value)}")
+        return value
+    if origin is list:
+        if not isinstance(value, list):
+            _fail(path, f"expected a list, got {type(value).__name__}")
+        (it,) = typing.get_args(tp)
+        return [convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
+    if origin is dict:
+        if not isinstance(value, dict):
+            _fail(path, f"expected a mapping, got {type(value).__name__}")
+        _, vt = typing.get_args(tp)
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str) or not k or not k.isprintable():
+                _fail(path, f"names must be non-empty printable strings, got {show(k)}")
+            out[k] = convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
+        return out
+    if isinstance(tp, type) and is_dataclass(tp):
+        return build(tp, value, path)
+    if tp in (float, int):
+        return check_number(value, tp, meta, path)
+    if tp is str:
+        if not isinstance(value, str):
+            _fail(path, f"expected a string, got {type(value).__name__} {show(value)}")
+        pattern = meta.get("pattern")
+        if pattern is not None and not pattern.fullmatch(value):
+            _fail(path, f"must be {meta.get('what', pattern.pattern)}, got {show(value)}")
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            _fail(path, f"expected true or false, got {show(value)}")
+        return value
+    raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
+
+
+def build(cls: type, data: Any, path: str = "") -> Any:
+    """Validate a mapping into the dataclass ``cls``: unknown keys, types, finiteness and
+    each field's ``metadata`` bounds, every error one line naming the dotted key."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        _fail(path or "(top level)", f"expected a mapping, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    known = {f.name: f for f in fields(cls)}
+    for key in data:
+        if key not in known:
+            # a key is shown as written, or quoted when it holds what a line cannot
+            name = key if isinstance(key, str) and key.isprintable() else show(key)
+            _fail(f"{path}.{name}" if path else name, "unknown key")
+    kwargs = {}
+    for name, f in known.items():
+        sub = f"{path}.{name}" if path else name
+        if name in data:
+            kwargs[name] = convert(data[name], hints[name], f.metadata, sub)
+        elif f.default is MISSING and f.default_factory is MISSING:  # pragma: no cover
+            _fail(sub, "missing")
+    return cls(**kwargs)
