@@ -290,10 +290,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         return 0
     except ModuleNotFoundError as exc:  # an optional extra (report, sim) not installed
-        extra = _EXTRAS.get((exc.name or "").split(".")[0])
+        module = (exc.name or "").split(".")[0]
+        extra = _EXTRAS.get(module)
         if extra is None:
             raise
-        print(f"navd: {exc.name} is not installed: pip install 'navd[{extra}]'", file=sys.stderr)
+        print(f"navd: {module} is not installed: pip install 'navd[{extra}]'", file=sys.stderr)
         return 2
     except OSError as exc:
         name = getattr(exc, "filename", None) or ""

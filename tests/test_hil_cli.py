@@ -32,3 +32,35 @@ def test_bad_fault_schedule_is_one_line(
     assert main(["demo", "--dir", str(tmp_path / "v"), "--faults", str(f)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err and "Traceback" not in err
+
+
+def test_an_unknown_scenario_is_named_with_the_choices(capsys: pytest.CaptureFixture[str]) -> None:
+    from navd.hil.entry import sim
+
+    assert sim(["no-such-mission", "--out", "unused"]) == 2
+    err = capsys.readouterr().err
+    assert "no scenario named 'no-such-mission'" in err and "claytor-2" in err
+    assert "scenarios/" not in err  # not a path inside the installed package
+
+
+def test_a_missing_sim_extra_is_one_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import builtins
+    import sys
+
+    from navd.hil import entry
+
+    real = builtins.__import__
+
+    def without_geographiclib(name: str, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if name.startswith("geographiclib"):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real(name, *args, **kwargs)
+
+    for mod in [m for m in sys.modules if m.startswith(("navd.hil.sim_cli", "navd.hil.world"))]:
+        monkeypatch.delitem(sys.modules, mod)
+    monkeypatch.setattr(builtins, "__import__", without_geographiclib)
+    assert entry.sim(["claytor-2", "--out", "unused"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "navd-sim: geographiclib is not installed: pip install 'navd[sim]'"

@@ -4,7 +4,7 @@ When the gate keeps rejecting ranges, either the estimate has drifted (the
 seed-000 Chesapeake run: a current prior too small, every range refused) or the
 ranges are bad (multipath bursts, which only lengthen a path).  Widening the
 covariance until ranges pass cannot tell the two apart: a burst of long outliers
-then opens the gate to more of them, and the current runs away (issue 9).
+then opens the gate to more of them, and the current runs away.
 
 Instead, a correction of the present position and current is looked for that
 explains the recent ranges *together*: each range, measured at its own time, is

@@ -238,13 +238,17 @@ class Bench:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="navd-hil", description=__doc__.splitlines()[0])
-    p.add_argument("scenario")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--dir", required=True)
-    p.add_argument("--zenoh-port", type=int, default=7447)
-    p.add_argument("--faults", help="YAML list of scheduled faults")
-    p.add_argument("--speed", type=float, default=1.0)
+    p = argparse.ArgumentParser(
+        prog="navd-hil",
+        description="The emulated vehicle: one emulator per device on a pseudo-terminal, "
+        "moved along a simulated mission in real time, and a navd.yaml to run navd against them.",
+    )
+    p.add_argument("scenario", help="scenario name (navd-sim --list) or YAML path")
+    p.add_argument("--seed", type=int, default=1, help="random seed of the sensor errors")
+    p.add_argument("--dir", required=True, help="directory for the ptys, navd.yaml and truth")
+    p.add_argument("--zenoh-port", type=int, default=7447, help="port navd's zenoh listens on")
+    p.add_argument("--faults", help="YAML list of scheduled faults {t, device, action, value}")
+    p.add_argument("--speed", type=float, default=1.0, help="time warp (1: real time)")
     args = p.parse_args(argv)
     try:
         faults = check_faults(yaml.safe_load(Path(args.faults).read_text())) if args.faults else []

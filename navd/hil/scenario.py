@@ -153,6 +153,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     p = Path(name_or_path)
     if not p.suffix:
         p = scenario_dir() / f"{name_or_path}.yaml"
+        if not p.exists():
+            raise ConfigError(
+                f"no scenario named {str(name_or_path)!r}; there are: {', '.join(list_scenarios())}"
+            )
     try:
         data = yaml.safe_load(p.read_text(encoding="utf-8"))
     except OSError as exc:

@@ -70,10 +70,14 @@ def write_mission(
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="navd-sim", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="navd-sim",
+        description="A simulated mission as navd would have logged it: measurements.jsonl "
+        "(navd replay's input), truth.jsonl, config.yaml and mission.json in --out.",
+    )
     p.add_argument("scenario", nargs="?", help="scenario name or YAML path (--list to see them)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--out", help="output directory")
+    p.add_argument("--seed", type=int, default=1, help="random seed of the sensor errors")
+    p.add_argument("--out", help="output directory (required unless --list)")
     p.add_argument("--list", action="store_true", help="list the bundled scenarios")
     args = p.parse_args(argv)
     if args.list or not args.scenario:
