@@ -105,9 +105,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_watch(args: argparse.Namespace) -> int:
-    from navd.watch import watch
+    from navd.watch import watch, watch_fleet
 
-    return watch(_config(args), args.count, args.seconds, args.every)
+    if args.fleet:
+        return watch_fleet(_config(args), args.seconds, args.every, args.connect)
+    return watch(_config(args), args.count, args.seconds, args.every, args.connect)
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
@@ -216,6 +218,15 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--count", type=int, help="stop after this many estimates")
     w.add_argument("--seconds", type=float, help="stop after this long")
     w.add_argument("--every", type=float, default=1.0, help="print at most every N s (0: all)")
+    w.add_argument(
+        "--fleet", action="store_true", help="every vehicle under auv/*, and which are alive"
+    )
+    w.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="zenoh endpoint to connect to (a router for a fleet), e.g. tcp/10.0.0.1:7447",
+    )
     w.set_defaults(func=_cmd_watch)
 
     cap = sub.add_parser(

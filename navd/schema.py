@@ -13,7 +13,7 @@ ranges too: there a range decision is written as ``decision`` (:data:`LOG_TYPE`)
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, TypeVar
 
 #: the version in every zenoh message (``schema``); it changes when a field changes meaning
 SCHEMA_VERSION = 1
@@ -179,3 +179,16 @@ def outputs_of(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[d
         elif kind in FROM_LOG_TYPE and FROM_LOG_TYPE[kind] == "range":
             dec.append({**r, "type": "range"})
     return est, dec
+
+
+T = TypeVar("T", Estimate, RangeDecision)
+
+
+def from_dict(cls: type[T], d: dict[str, Any]) -> T:
+    """A published or logged record back into its dataclass.
+
+    Fields this version does not know (added by a newer navd, or zenoh's ``schema``
+    and ``seq``) are left out, so a reader keeps working as fields are added.
+    """
+    known = {name for name, _ in _PLANS[cls]}
+    return cls(**{k: v for k, v in d.items() if k in known})

@@ -1,67 +1,102 @@
-"""``navd watch``: the live estimate for a person, and the example for autopilot writers.
+"""``navd watch``: the live estimate for a person, built on :mod:`navd.client`.
 
-It is a zenoh peer that connects to the daemon's endpoints (it listens on none),
-subscribes to ``auv/<vehicle>/nav/estimate`` and ``.../range``, and prints a line
-per estimate.  Callbacks run on zenoh threads; a ring channel keeps only the newest
-samples if the printer falls behind.
+One vehicle: a line per estimate (at most every ``--every`` seconds) and per range
+decision.  ``--fleet``: every vehicle under ``auv/*`` a line each second, and a line
+when a daemon comes up or goes away (its liveliness token).
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
-from dataclasses import replace
+from collections import deque
 
-import zenoh
-
+from navd.client import NavClient, NavFleet
 from navd.config import Config
-from navd.daemon.publish import zenoh_config
-from navd.formats import jsonlines
+from navd.schema import Estimate, RangeDecision
 
 
-def format_estimate(e: dict) -> str:
+def format_estimate(e: Estimate) -> str:
     return (
-        f"{e.get('mode', '?'):9s} {e['lat']:11.7f} {e['lon']:12.7f} depth {e['depth']:5.2f} m  "
-        f"1-sigma {e['std_n']:5.1f}/{e['std_e']:5.1f} m  current "
-        f"{e['current_n']:+.2f}N {e['current_e']:+.2f}E m/s  seq {e.get('seq')}"
+        f"{e.mode:9s} {e.lat:11.7f} {e.lon:12.7f} depth {e.depth:5.2f} m  "
+        f"1-sigma {e.std_n:5.1f}/{e.std_e:5.1f} m  current "
+        f"{e.current_n:+.2f}N {e.current_e:+.2f}E m/s  {e.integrity}"
     )
 
 
-def watch(cfg: Config, count: int | None, seconds: float | None, every: float) -> int:
-    z = cfg.zenoh
-    # connect to where the daemon listens; listen nowhere ourselves
-    zc = replace(z, listen=[], connect=list(z.connect) or list(z.listen))
-    session = zenoh.open(zenoh_config(zc))
-    prefix = f"auv/{cfg.vehicle.name}/nav"
-    est_sub = session.declare_subscriber(f"{prefix}/estimate", zenoh.handlers.RingChannel(64))
-    rng_sub = session.declare_subscriber(f"{prefix}/range", zenoh.handlers.RingChannel(64))
+def _endpoints(cfg: Config, connect: list[str] | None) -> list[str]:
+    """Where to connect: as asked, else where the daemon connects or listens."""
+    return list(connect or cfg.zenoh.connect or cfg.zenoh.listen)
+
+
+def watch(
+    cfg: Config,
+    count: int | None,
+    seconds: float | None,
+    every: float,
+    connect: list[str] | None = None,
+) -> int:
+    got: deque[Estimate | RangeDecision] = deque(maxlen=256)
+    wake = threading.Event()
+
+    def keep(x: Estimate | RangeDecision) -> None:
+        got.append(x)
+        wake.set()
+
     n = 0
     last_print = 0.0
     t_end = time.monotonic() + seconds if seconds else None
+    with NavClient(cfg.vehicle.name, _endpoints(cfg, connect)) as nav:
+        nav.subscribe(keep, keep)
+        try:
+            while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
+                wake.wait(0.1)
+                wake.clear()
+                while got and (count is None or n < count):
+                    x = got.popleft()
+                    if isinstance(x, RangeDecision):
+                        verdict = "accepted" if x.accepted else f"rejected ({x.reason})"
+                        print(f"range {x.range_m or float('nan'):.1f} m {verdict}", flush=True)
+                        continue
+                    n += 1
+                    now = time.monotonic()
+                    if every <= 0 or now - last_print >= every:
+                        print(format_estimate(x), flush=True)
+                        last_print = now
+        except KeyboardInterrupt:
+            pass
+    if n == 0:
+        print("navd watch: no estimate received", file=sys.stderr)
+        return 1
+    return 0
+
+
+def watch_fleet(
+    cfg: Config, seconds: float | None, every: float, connect: list[str] | None = None
+) -> int:
+    fleet = NavFleet(_endpoints(cfg, connect))
+    t_end = time.monotonic() + seconds if seconds else None
+    up: set[str] = set()
+    seen = False
     try:
-        while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
-            got = False
-            while (s := rng_sub.try_recv()) is not None:
-                r = jsonlines.loads(s.payload.to_bytes())
-                verdict = "accepted" if r.get("accepted") else f"rejected ({r.get('reason')})"
-                print(f"range {r.get('range_m', float('nan')):.1f} m {verdict}", flush=True)
-            while (s := est_sub.try_recv()) is not None:
-                got = True
-                n += 1
-                e = jsonlines.loads(s.payload.to_bytes())
-                now = time.monotonic()
-                if every <= 0 or now - last_print >= every:
-                    print(format_estimate(e), flush=True)
-                    last_print = now
-                if count is not None and n >= count:
-                    break
-            if not got:
-                time.sleep(0.02)
+        while t_end is None or time.monotonic() < t_end:
+            time.sleep(max(every, 0.2))
+            now_up = set(fleet.up)
+            for name in sorted(now_up - up):
+                print(f"{name}: up", flush=True)
+            for name in sorted(up - now_up):
+                print(f"{name}: gone (its daemon stopped or the link is down)", flush=True)
+            up = now_up
+            for name, e in sorted(fleet.latest.items()):
+                seen = True
+                state = "" if name in up else "  (not alive)"
+                print(f"{name:12s} {format_estimate(e)}{state}", flush=True)
     except KeyboardInterrupt:
         pass
     finally:
-        session.close()
-    if n == 0:
-        print("navd watch: no estimate received", file=sys.stderr)
+        fleet.close()
+    if not seen:
+        print("navd watch --fleet: no vehicle heard", file=sys.stderr)
         return 1
     return 0

@@ -4,6 +4,7 @@ Key expressions under ``auv/<vehicle>/nav/``:
 
 * ``estimate`` (10 Hz), ``range`` (each range decision), ``health`` (1 Hz): JSON,
   ``application/json`` with schema ``navd/<kind>/1``;
+* ``estimate_1hz``: the first estimate of every second, for a radio link;
 * ``latest``: a queryable answering with the latest estimate;
 * ``alive``: a liveliness token while the daemon runs;
 * ``cmd/reset`` and ``cmd/beacon``: queryables for commands, answered ``{"ok": true}``
@@ -150,6 +151,12 @@ class Publisher:
             )
             for kind in ("estimate", "range", "health")
         }
+        # the estimate once a second, for links that cannot carry 10 Hz (a radio modem)
+        self._pubs["estimate_1hz"] = s.declare_publisher(
+            f"{self.prefix}/estimate_1hz",
+            encoding=_JSON.with_schema(f"navd/estimate/{SCHEMA_VERSION}"),
+        )
+        self._second: float | None = None
         self._latest: bytes = b"null"
         self._lock = threading.Lock()
         self._queryables = [
@@ -171,6 +178,11 @@ class Publisher:
         if kind == "estimate":
             with self._lock:
                 self._latest = payload
+            second = math.floor(body.get("t", 0.0))
+            if second != self._second:
+                self._second = second
+                with contextlib.suppress(Exception):
+                    self._pubs["estimate_1hz"].put(payload)
         try:
             self._pubs[kind].put(payload)
         except Exception:  # a transport hiccup must not stop navigation

@@ -75,12 +75,20 @@ class BenchVehicle:
     """Emulators on ptys under ``dir`` (config ``dir/navd.yaml``), then the daemon on them."""
 
     def __init__(
-        self, d: Path, navd_stderr: IO[str] | int | None = None, faults: Path | None = None
+        self,
+        d: Path,
+        navd_stderr: IO[str] | int | None = None,
+        faults: Path | None = None,
+        vehicle: str = "sim690s",
+        connect: list[str] | None = None,
     ) -> None:
         self.dir = d
         self.config = d / "navd.yaml"
         self.port = free_port()
         args = [str(BIN / "navd-hil"), "demo", "--dir", str(d), "--zenoh-port", str(self.port)]
+        args += ["--vehicle", vehicle]
+        for endpoint in connect or []:
+            args += ["--zenoh-connect", endpoint]
         if faults is not None:
             args += ["--faults", str(faults)]
         self.hil = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)

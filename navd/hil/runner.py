@@ -98,11 +98,17 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
     return out
 
 
-def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, Any]:
+def daemon_config(
+    crew: dict[str, Any],
+    d: Path,
+    zenoh_port: int,
+    vehicle: str = "sim690s",
+    connect: list[str] | None = None,
+) -> dict[str, Any]:
     return deep_merge(
         crew,
         {
-            "vehicle": {"name": "sim690s"},
+            "vehicle": {"name": vehicle},
             "devices": {
                 "ahrs": {"port": str(d / "ahrs"), "rate_hz": 20},
                 "gps": {"port": str(d / "gps")},
@@ -110,21 +116,30 @@ def daemon_config(crew: dict[str, Any], d: Path, zenoh_port: int) -> dict[str, A
                 "motor": {"port": str(d / "motor")},
                 "modem": {"port": str(d / "modem"), "remote_address": 2, "beacon": "udb"},
             },
-            "zenoh": {"listen": [f"tcp/127.0.0.1:{zenoh_port}"]},
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{zenoh_port}"], "connect": connect or []},
             "log": {"dir": str(d / "log")},
         },
     )
 
 
 class Bench:
-    def __init__(self, scenario: str, seed: int, d: Path, zenoh_port: int, speed: float = 1.0):
+    def __init__(
+        self,
+        scenario: str,
+        seed: int,
+        d: Path,
+        zenoh_port: int,
+        speed: float = 1.0,
+        vehicle: str = "sim690s",
+        connect: list[str] | None = None,
+    ):
         self.sc = load_scenario(scenario)
         self.mission = simulate(self.sc, seed)
         self.dir = d
         self.speed = speed
         d.mkdir(parents=True, exist_ok=True)
         crew = crew_config(self.sc)
-        cfg = daemon_config(crew, d, zenoh_port)
+        cfg = daemon_config(crew, d, zenoh_port, vehicle, connect)
         parsed = config_from_dict(cfg)  # also proves the generated config valid
         self.site = parsed.site
         self.baud = {
@@ -249,10 +264,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--zenoh-port", type=int, default=7447, help="port navd's zenoh listens on")
     p.add_argument("--faults", help="YAML list of scheduled faults {t, device, action, value}")
     p.add_argument("--speed", type=float, default=1.0, help="time warp (1: real time)")
+    p.add_argument("--vehicle", default="sim690s", help="vehicle name (the zenoh key auv/NAME)")
+    p.add_argument(
+        "--zenoh-connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="the daemon also connects here (a zenoh router, for a fleet)",
+    )
     args = p.parse_args(argv)
     try:
         faults = check_faults(yaml.safe_load(Path(args.faults).read_text())) if args.faults else []
-        bench = Bench(args.scenario, args.seed, Path(args.dir), args.zenoh_port, args.speed)
+        bench = Bench(
+            args.scenario,
+            args.seed,
+            Path(args.dir),
+            args.zenoh_port,
+            args.speed,
+            args.vehicle,
+            args.zenoh_connect,
+        )
     except (ConfigError, OSError, yaml.YAMLError) as exc:
         print(f"navd-hil: {exc}", file=sys.stderr)
         return 2

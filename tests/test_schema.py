@@ -1,0 +1,41 @@
+"""One output schema: what the filter writes is what a reader gets back, under one name."""
+
+from __future__ import annotations
+
+from navd.schema import Estimate, RangeDecision, from_dict, outputs_of, to_dict
+
+
+def _estimate(**kw: object) -> Estimate:
+    base = dict(t=1.0, lat=37.0, lon=-80.0, current_n=0.1, current_e=0.0, std_n=3.0)
+    base |= dict(std_e=3.0, cov_ne=0.0, depth=2.0, mode="submerged", integrity="ok")
+    base |= kw
+    return Estimate(**base)  # type: ignore[arg-type]
+
+
+def test_optional_fields_are_left_out_and_type_comes_first() -> None:
+    d = to_dict(_estimate())
+    assert next(iter(d)) == "type" and d["type"] == "estimate"
+    assert "dr_lat" not in d and "integrity_reason" not in d
+    d = to_dict(_estimate(dr_lat=37.1, dr_lon=-80.1))
+    assert d["dr_lat"] == 37.1
+
+
+def test_a_reader_ignores_fields_it_does_not_know() -> None:
+    """Fields are only ever added: an older autopilot keeps working."""
+    d = to_dict(_estimate()) | {"schema": 1, "seq": 7, "a_field_from_the_future": 1}
+    assert from_dict(Estimate, d) == _estimate()
+
+
+def test_a_range_refused_before_the_gate_has_null_residual() -> None:
+    d = to_dict(RangeDecision(5.0, 4.0, "udb", reason="not_initialised"))
+    assert d["accepted"] is False and d["residual_m"] is None and d["gate_m"] is None
+    assert "range_m" not in d
+
+
+def test_decisions_are_found_in_replay_output_and_daemon_log_alike() -> None:
+    dec = to_dict(RangeDecision(5.0, 4.0, "udb", accepted=True, reason="ok"))
+    measured = {"type": "range", "t": 5.0, "t_ping": 4.0, "m": 700.0, "beacon": "udb"}
+    est = to_dict(_estimate())
+    for rows in ([est, dec], [est, measured, {**dec, "type": "decision"}]):
+        e, r = outputs_of(rows)
+        assert e == [est] and len(r) == 1 and r[0]["type"] == "range" and r[0]["accepted"]
