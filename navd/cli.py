@@ -14,7 +14,12 @@ from navd.config import ConfigError, load_config
 from navd.formats.mlog import LogError
 
 #: the modules of optional extras, and the extra that brings each
-_EXTRAS = {"matplotlib": "report", "geographiclib": "report", "pyproj": "sim"}
+_EXTRAS = {
+    "matplotlib": "report",
+    "geographiclib": "report",
+    "pyproj": "sim",
+    "foxglove": "foxglove",
+}
 EX_CONFIG = 78  # sysexits.h: a configuration error; navd.service does not restart on it
 
 
@@ -44,6 +49,37 @@ def _cmd_report(args: argparse.Namespace) -> int:
         )
         return 2
     print(summary)
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from navd.analysis.export import load_mission
+    from navd.formats import gis
+
+    if not (args.gpx or args.kml or args.csv or args.mcap):
+        print("navd: export: say what to write: --gpx, --kml, --csv and/or --mcap", file=sys.stderr)
+        return 2
+    mission = load_mission(list(args.log), _config(args), smooth=args.smooth)
+    if not mission.estimates:
+        print(
+            f"navd: export: {args.log[0]}: no estimates (no GPS fix in the log?)", file=sys.stderr
+        )
+        return 2
+    if args.gpx:
+        gis.write_gpx(mission, args.gpx)
+    if args.kml:
+        gis.write_kml(mission, args.kml, args.ellipse_every)
+    if args.csv:
+        gis.write_csv(mission, args.csv)
+    if args.mcap:
+        from navd.formats.foxglove_mcap import write_mcap
+
+        counts = write_mcap(mission, args.mcap)
+        print(f"{args.mcap}: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    print(
+        f"{len(mission.estimates)} estimates, {len(mission.decisions)} range decisions, "
+        f"{len(mission.fixes)} GPS fixes, {len(mission.surfacings())} surfacings"
+    )
     return 0
 
 
@@ -253,6 +289,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cal.add_argument("--out", help="write the config snippet here (else printed)")
     cal.set_defaults(func=_cmd_calibrate)
+
+    ex = sub.add_parser("export", help="a mission as GPX, KML, CSV (GIS tools) or MCAP (Foxglove)")
+    ex.add_argument("log", nargs="+", help="measurement or daemon log(s), in order")
+    ex.add_argument("--config", help="configuration YAML (defaults if omitted)")
+    _site_option(ex)
+    ex.add_argument("--smooth", action="store_true", help="also the RTS-smoothed track")
+    ex.add_argument("--gpx", metavar="OUT", help="tracks and surfacing points as GPX 1.1")
+    ex.add_argument("--kml", metavar="OUT", help="tracks, surfacings, 95 %% ellipses as KML")
+    ex.add_argument("--csv", metavar="OUT", help="one row per estimate")
+    ex.add_argument("--mcap", metavar="OUT", help="MCAP with Foxglove schemas (navd[foxglove])")
+    ex.add_argument(
+        "--ellipse-every", type=float, default=60.0, help="KML: a 95 %% ellipse every N s"
+    )
+    ex.set_defaults(func=_cmd_export)
 
     c = sub.add_parser(
         "check-config", help="validate a configuration as navd run would, and explain it"

@@ -1,0 +1,129 @@
+"""``navd export``: a mission for the tools vehicle teams already use.
+
+The log (a measurement log or the daemon's own) is run through the same navigator
+as ``navd replay``; what comes out (estimates, the smoothed track when asked, range
+decisions, dead reckoning), with the log's GPS fixes, raw sensor records and health,
+is written as GPX, KML or CSV (navd/formats/gis.py) for GIS tools, or as MCAP with
+Foxglove's schemas (navd/formats/foxglove_mcap.py).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from navd.analysis.replay import run_navigator
+from navd.analysis.score import surfacing_error_gps
+from navd.config import Config
+from navd.formats import jsonlines
+from navd.formats.mlog import MeasurementLog, read_measurement_log
+from navd.records import Gps, Record
+from navd.schema import outputs_of
+
+
+@dataclass(frozen=True, slots=True)
+class Surfacing:
+    """The last submerged estimate, the first GPS fix after it, and how far apart."""
+
+    t: float
+    lat: float
+    lon: float
+    fix_lat: float
+    fix_lon: float
+    error_m: float
+    after_s: float  # from the last submerged estimate to the fix
+
+
+@dataclass(slots=True)
+class Mission:
+    estimates: list[dict[str, Any]]
+    decisions: list[dict[str, Any]]
+    fixes: list[Gps]
+    records: list[Record]
+    epoch_s: float  # Unix time of t = 0 (the log's time base)
+    smoothed: list[dict[str, Any]] = field(default_factory=list)
+    health: list[dict[str, Any]] = field(default_factory=list)
+
+    def utc(self, t: float) -> dt.datetime:
+        return dt.datetime.fromtimestamp(self.epoch_s + t, dt.UTC)
+
+    def surfacings(self) -> list[Surfacing]:
+        """One per dive: where the vehicle thought it was when it came up, and GPS."""
+        out = []
+        dive: list[dict[str, Any]] = []
+        for e in self.estimates:
+            if e["mode"] == "submerged":
+                dive.append(e)
+            elif dive:
+                s = _surfacing(dive[-1], self.fixes)
+                if s is not None:
+                    out.append(s)
+                dive = []
+        if dive:
+            s = _surfacing(dive[-1], self.fixes)
+            if s is not None:
+                out.append(s)
+        return out
+
+
+def _surfacing(last: dict[str, Any], fixes: list[Gps]) -> Surfacing | None:
+    found = surfacing_error_gps([last], fixes)
+    if found is None:
+        return None
+    fix = next(f for f in fixes if f.t > last["t"] and f.lat is not None)
+    assert fix.lat is not None and fix.lon is not None
+    return Surfacing(last["t"], last["lat"], last["lon"], fix.lat, fix.lon, *found)
+
+
+def _epoch(header: dict[str, Any]) -> float:
+    """Unix seconds at the log's t = 0: its start, less the monotonic clock then."""
+    start = header.get("start_utc")
+    try:
+        t0 = dt.datetime.fromisoformat(str(start).replace("Z", "+00:00")).timestamp()
+    except ValueError:
+        t0 = 0.0
+    mono = header.get("start_monotonic")
+    if header.get("time_base") == "monotonic" and isinstance(mono, int | float):
+        t0 -= float(mono)
+    return t0 if math.isfinite(t0) else 0.0
+
+
+def _health_lines(paths: list[Path]) -> list[dict[str, Any]]:
+    out = []
+    for p in paths:
+        with p.open("rb") as fh:
+            for line in fh:
+                if b'"health"' not in line:
+                    continue
+                try:
+                    obj = jsonlines.loads(line)
+                except jsonlines.DecodeError:
+                    continue
+                if isinstance(obj, dict) and obj.get("type") == "health":
+                    out.append(obj)
+    return out
+
+
+def load_mission(paths: list[str | Path], cfg: Config, smooth: bool = False) -> Mission:
+    log = MeasurementLog({}, [], [])
+    for p in paths:
+        part = read_measurement_log(p)
+        log.header = log.header or part.header
+        log.records.extend(part.records)
+    est, dec = outputs_of(run_navigator(log, cfg).outputs)
+    smoothed: list[dict[str, Any]] = []
+    if smooth:
+        smoothed, _ = outputs_of(run_navigator(log, cfg, smooth=True).outputs)
+    fixes = [r for r in log.records if isinstance(r, Gps) and r.fix and r.lat is not None]
+    return Mission(
+        est,
+        dec,
+        fixes,
+        log.records,
+        _epoch(log.header),
+        smoothed,
+        _health_lines([Path(p) for p in paths]),
+    )

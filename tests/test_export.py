@@ -1,0 +1,86 @@
+"""navd export: GPX valid against its XSD, KML that parses with what it should hold, CSV,
+and MCAP read back with the mcap reader, channel by channel against the log."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from lxml import etree
+from mcap.reader import make_reader
+
+from navd.formats.mlog import read_measurement_log
+from navd.hil.scenario import load_scenario
+from navd.hil.sim_cli import write_mission
+from navd.hil.world import simulate
+
+XSD = Path(__file__).parent / "data" / "gpx-1.1.xsd"
+KML = "{http://www.opengis.net/kml/2.2}"
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("export")
+    write_mission(simulate(load_scenario("claytor-3"), 2), d)
+    r = subprocess.run(
+        [sys.executable, "-m", "navd", "export", str(d / "measurements.jsonl"),
+         "--config", str(d / "config.yaml"), "--smooth", "--ellipse-every", "30",
+         "--gpx", str(d / "m.gpx"), "--kml", str(d / "m.kml"), "--csv", str(d / "m.csv"),
+         "--mcap", str(d / "m.mcap")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    return d
+
+
+def _estimates(d: Path) -> int:
+    return sum(1 for _ in csv.DictReader((d / "m.csv").open()))
+
+
+def test_gpx_is_valid_gpx_1_1_with_every_track(exported: Path) -> None:
+    schema = etree.XMLSchema(etree.parse(str(XSD)))
+    doc = etree.parse(str(exported / "m.gpx"))
+    schema.assertValid(doc)
+    ns = {"g": "http://www.topografix.com/GPX/1/1"}
+    names = doc.xpath("//g:trk/g:name/text()", namespaces=ns)
+    assert names == ["estimate", "smoothed", "dead reckoning", "GPS fixes", "beacon"]
+    est = doc.xpath("//g:trk[g:name='estimate']//g:trkpt", namespaces=ns)
+    assert len(est) == _estimates(exported)
+    (wpt,) = doc.xpath("//g:wpt", namespaces=ns)  # claytor-3 surfaces once
+    assert "against the first GPS fix" in wpt.findtext("g:desc", namespaces=ns)
+
+
+def test_kml_has_tracks_surfacings_and_ellipses(exported: Path) -> None:
+    doc = etree.parse(str(exported / "m.kml"))
+    marks = doc.getroot().iter(f"{KML}Placemark")
+    names = [m.findtext(f"{KML}name") for m in marks]
+    assert names[:5] == ["estimate", "smoothed", "dead reckoning", "GPS fixes", "beacon"]
+    assert any(n.startswith("surfacing 1: ") for n in names)
+    rings = list(doc.getroot().iter(f"{KML}LinearRing"))
+    n = _estimates(exported)
+    assert len(rings) >= n // 300  # one every 30 s at 10 Hz
+    pts = rings[0].findtext(f"{KML}coordinates").split()
+    assert len(pts) == 37 and pts[0] == pts[-1]  # closed
+
+
+def test_mcap_holds_what_the_log_holds(exported: Path) -> None:
+    log = read_measurement_log(exported / "measurements.jsonl")
+    by_type = Counter(type(r).__name__.lower() for r in log.records)
+    with (exported / "m.mcap").open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None and summary.statistics is not None
+    topics = {c.id: c.topic for c in summary.channels.values()}
+    counts = {topics[i]: n for i, n in summary.statistics.channel_message_counts.items()}
+    schemas = {topics[c.id]: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    assert schemas["/nav/estimate"] == "foxglove.LocationFix"
+    assert schemas["/nav/gps"] == "foxglove.LocationFix"
+    assert schemas["/nav/log"] == "foxglove.Log"
+    assert counts["/nav/estimate"] == counts["/nav/smoothed"] == _estimates(exported)
+    assert counts["/sensors/heading"] == by_type["heading"]
+    assert counts["/sensors/rpm"] == by_type["rpm"]
+    assert counts["/sensors/range"] == counts["/nav/range"] == by_type["range"]
+    assert counts["/nav/log"] >= 3  # mode changes, integrity, the surfacing
