@@ -83,6 +83,13 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_foxglove(args: argparse.Namespace) -> int:
+    from navd.foxglove_bridge import serve
+
+    connect = args.connect or list(_config(args).zenoh.listen)
+    return serve(connect, args.host, args.port, args.seconds)
+
+
 def _cmd_check_config(args: argparse.Namespace) -> int:
     from navd.config import check_for_run
 
@@ -303,6 +310,22 @@ def build_parser() -> argparse.ArgumentParser:
         "--ellipse-every", type=float, default=60.0, help="KML: a 95 %% ellipse every N s"
     )
     ex.set_defaults(func=_cmd_export)
+
+    fg = sub.add_parser(
+        "foxglove", help="serve every vehicle's navigation to Foxglove, live (navd[foxglove])"
+    )
+    fg.add_argument("--config", help="a config whose zenoh endpoints to connect to")
+    _site_option(fg)
+    fg.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="zenoh endpoint (a vehicle or a router), e.g. tcp/10.0.0.1:7447",
+    )
+    fg.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
+    fg.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
+    fg.add_argument("--seconds", type=float, help="stop after this long")
+    fg.set_defaults(func=_cmd_foxglove)
 
     c = sub.add_parser(
         "check-config", help="validate a configuration as navd run would, and explain it"
