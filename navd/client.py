@@ -25,7 +25,7 @@ from typing import Any
 import zenoh
 
 from navd.formats import jsonlines
-from navd.schema import Estimate, RangeDecision, from_dict
+from navd.schema import Advisory, Estimate, RangeDecision, from_dict
 
 __all__ = ["Answer", "NavClient", "NavFleet", "open_session"]
 
@@ -103,8 +103,19 @@ class NavClient:
         self,
         on_estimate: Callable[[Estimate], None] | None = None,
         on_range: Callable[[RangeDecision], None] | None = None,
+        on_advisory: Callable[[Advisory], None] | None = None,
     ) -> None:
-        """Call back on every estimate (10 Hz) and range decision, on a zenoh thread."""
+        """Call back on every estimate (10 Hz), range decision and observability
+        advisory (1 Hz), on a zenoh thread."""
+        if on_advisory is not None:
+            cb_a = on_advisory
+
+            def adv(sample: Any) -> None:
+                d = _decode(sample.payload)
+                if d is not None:
+                    cb_a(from_dict(Advisory, d))
+
+            self._subs.append(self.session.declare_subscriber(f"{self.prefix}/advisory", adv))
         if on_estimate is not None:
             cb_e = on_estimate
 

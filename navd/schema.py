@@ -85,6 +85,23 @@ class RangeDecision:
 
 
 @dataclass(slots=True)
+class Advisory:
+    """How well the recent ranges fix each horizontal direction, and what would help."""
+
+    t: float
+    verdict: str  # ok | weak_cross_range | no_ranges
+    ranges: int  # accepted ranges in the window
+    window_s: float
+    bearing_spread_deg: float | None = _optional()  # of the lines of sight to the beacon
+    info_ratio: float | None = _optional()  # worst / best direction's range information
+    weak_axis_deg: float | None = _optional()  # the least fixed direction, from true north
+    weak_std_m: float | None = _optional()  # how well ranges alone fix it (1 / sqrt(info))
+    suggest_heading_deg: float | None = _optional()  # steer across the line of sight
+    suggest_turn_deg: float | None = _optional()  # from the present heading, + to starboard
+    type: str = "advisory"
+
+
+@dataclass(slots=True)
 class DeviceHealth:
     connected: bool
     last_rx_age_s: float | None
@@ -137,10 +154,10 @@ def _plan(cls: type) -> tuple[tuple[str, bool], ...]:
     return tuple((f.name, bool(f.metadata.get("optional"))) for f in fields(cls))
 
 
-_PLANS = {cls: _plan(cls) for cls in (Estimate, RangeDecision, DeviceHealth, Health)}
+_PLANS = {cls: _plan(cls) for cls in (Estimate, RangeDecision, Advisory, DeviceHealth, Health)}
 
 
-def to_dict(obj: Estimate | RangeDecision | Health | DeviceHealth) -> dict[str, Any]:
+def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) -> dict[str, Any]:
     """The serialised form: ``type`` first, optional fields left out while None.
 
     A device's ``info`` is spread into its entry (``firmware``, ``serial_number``...).
@@ -181,7 +198,7 @@ def outputs_of(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[d
     return est, dec
 
 
-T = TypeVar("T", Estimate, RangeDecision)
+T = TypeVar("T", Estimate, RangeDecision, Advisory)
 
 
 def from_dict(cls: type[T], d: dict[str, Any]) -> T:

@@ -14,7 +14,7 @@ from collections import deque
 
 from navd.client import NavClient, NavFleet
 from navd.config import Config
-from navd.schema import Estimate, RangeDecision
+from navd.schema import Advisory, Estimate, RangeDecision
 
 
 def format_estimate(e: Estimate) -> str:
@@ -22,6 +22,20 @@ def format_estimate(e: Estimate) -> str:
         f"{e.mode:9s} {e.lat:11.7f} {e.lon:12.7f} depth {e.depth:5.2f} m  "
         f"1-sigma {e.std_n:5.1f}/{e.std_e:5.1f} m  current "
         f"{e.current_n:+.2f}N {e.current_e:+.2f}E m/s  {e.integrity}"
+    )
+
+
+def format_advisory(a: Advisory) -> str:
+    if a.verdict == "ok":
+        return f"observability ok ({a.ranges} ranges, bearings over {a.bearing_spread_deg} deg)"
+    if a.verdict == "no_ranges":
+        return f"observability: no ranges in the last {a.window_s:.0f} s"
+    turn = ""
+    if a.suggest_heading_deg is not None:
+        turn = f": turn {a.suggest_turn_deg:+.0f} deg to {a.suggest_heading_deg:.0f}"
+    return (
+        f"observability: weak across the line of sight (bearings over "
+        f"{a.bearing_spread_deg} deg, axis {a.weak_axis_deg} deg){turn}"
     )
 
 
@@ -37,10 +51,11 @@ def watch(
     every: float,
     connect: list[str] | None = None,
 ) -> int:
-    got: deque[Estimate | RangeDecision] = deque(maxlen=256)
+    got: deque[Estimate | RangeDecision | Advisory] = deque(maxlen=256)
     wake = threading.Event()
+    said = ""  # the last advisory printed: a line only when it changes
 
-    def keep(x: Estimate | RangeDecision) -> None:
+    def keep(x: Estimate | RangeDecision | Advisory) -> None:
         got.append(x)
         wake.set()
 
@@ -48,13 +63,19 @@ def watch(
     last_print = 0.0
     t_end = time.monotonic() + seconds if seconds else None
     with NavClient(cfg.vehicle.name, _endpoints(cfg, connect)) as nav:
-        nav.subscribe(keep, keep)
+        nav.subscribe(keep, keep, keep)
         try:
             while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
                 wake.wait(0.1)
                 wake.clear()
                 while got and (count is None or n < count):
                     x = got.popleft()
+                    if isinstance(x, Advisory):
+                        line = format_advisory(x)
+                        if line != said:
+                            print(line, flush=True)
+                            said = line
+                        continue
                     if isinstance(x, RangeDecision):
                         verdict = "accepted" if x.accepted else f"rejected ({x.reason})"
                         print(f"range {x.range_m or float('nan'):.1f} m {verdict}", flush=True)

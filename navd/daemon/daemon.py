@@ -266,8 +266,12 @@ class Daemon:
                 dev.every_second(now)
             h = self.health()
             self.rlog.output(h)
+            heading = self.latest.get("heading_deg") if self.latest else None
+            adv = self.nav.advisory(now, heading)
+            self.rlog.output(adv)
             if self.pub is not None:
                 self.pub.put("health", h)
+                self.pub.put("advisory", adv)
 
     def _device(self, kind: type[D]) -> D | None:
         return next((d for d in self.devices.values() if isinstance(d, kind)), None)

@@ -5,6 +5,7 @@ Key expressions under ``auv/<vehicle>/nav/``:
 * ``estimate`` (10 Hz), ``range`` (each range decision), ``health`` (1 Hz): JSON,
   ``application/json`` with schema ``navd/<kind>/1``;
 * ``estimate_1hz``: the first estimate of every second, for a radio link;
+* ``advisory`` (1 Hz): how well the recent ranges fix each direction (navd/filter/advisory.py);
 * ``latest``: a queryable answering with the latest estimate;
 * ``alive``: a liveliness token while the daemon runs;
 * ``cmd/reset`` and ``cmd/beacon``: queryables for commands, answered ``{"ok": true}``
@@ -149,7 +150,7 @@ class Publisher:
             kind: s.declare_publisher(
                 f"{self.prefix}/{kind}", encoding=_JSON.with_schema(f"navd/{kind}/{SCHEMA_VERSION}")
             )
-            for kind in ("estimate", "range", "health")
+            for kind in ("estimate", "range", "health", "advisory")
         }
         # the estimate once a second, for links that cannot carry 10 Hz (a radio modem)
         self._pubs["estimate_1hz"] = s.declare_publisher(
@@ -167,7 +168,7 @@ class Publisher:
             ),
         ]
         self._token = s.liveliness().declare_token(f"{self.prefix}/alive")
-        self.seq = {"estimate": 0, "range": 0, "health": 0}
+        self.seq = {"estimate": 0, "range": 0, "health": 0, "advisory": 0}
         self.errors = 0
         self.commands = {"accepted": 0, "rejected": 0, "rate_limited": 0}
         self._bucket = TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST)

@@ -20,6 +20,7 @@ from navd import geodesy
 from navd.acoustics import rescale_range, travel_time_to_range
 from navd.config import Beacon, Config
 from navd.filter import compass
+from navd.filter.advisory import Observability
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import GateDecision, NavFilter, RangeMeas, StateEstimate
 from navd.filter.deadreckoning import DeadReckoner
@@ -100,6 +101,7 @@ class Navigator:
         self.counters: Counter[str] = Counter()
         ig = nav.integrity
         self.integrity = Integrity(ig.window, ig.degraded_std_m, ig.lost_std_m)
+        self.observability = Observability()
         self.warnings: list[str] = list(self.sound.warnings())
 
         self._tick_k: int | None = None
@@ -159,6 +161,7 @@ class Navigator:
         self.filter = make_filter(self.cfg)
         self.filter.history.enabled = enabled
         self.integrity.clear()
+        self.observability.clear()
         self.dr = DeadReckoner()
         self._tick_k = None
         self._t_filter = None
@@ -349,6 +352,16 @@ class Navigator:
         d: GateDecision = self.filter.range_update(meas)
         self.integrity.range(d.accepted, self.filter.last_nis)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
+        if d.accepted:
+            est = self.filter.estimate()
+            self.observability.add(
+                rec.t,
+                math.degrees(est.lat),
+                math.degrees(est.lon),
+                math.degrees(fix.lat),
+                math.degrees(fix.lon),
+                math.hypot(meas.std_m, fix.position_std_m),
+            )
         if not d.accepted:
             self.counters[f"range_{d.reason}"] += 1
         out.accepted = d.accepted
@@ -377,6 +390,10 @@ class Navigator:
             self.counters["initialised_from_acoustic_fix"] += 1
 
     # -- outputs -----------------------------------------------------------------------
+    def advisory(self, t: float, heading_deg: float | None) -> dict[str, Any]:
+        """How well the recent ranges fix each direction (navd/filter/advisory.py)."""
+        return to_dict(self.observability.assess(t, heading_deg))
+
     def input_ages(self, t: float) -> dict[str, float | None]:
         """Seconds since the last heading, RPM and depth (None: never seen)."""
         ages = {"heading": self._t_heading, "rpm": self._t_rpm, "depth": self.depth.t}

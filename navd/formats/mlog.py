@@ -36,7 +36,7 @@ from navd.records import (
 
 FORMAT = "navd-measurements"
 #: what the daemon's own log holds besides measurements; replay passes over them
-LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "event"})
+LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "advisory", "event"})
 VERSION = 1
 #: a longer step forward between two records is checked against the record after it
 JUMP_S = 60.0
