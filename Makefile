@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-soak bench-calibration clean
+	bench-robustness bench-soak bench-calibration bench-advisory clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -57,6 +57,10 @@ bench-robustness: $(STAMP)
 # calibrating compass and speed from a surface circle, over 12 drawn missions (about 5 minutes)
 bench-calibration: $(STAMP)
 	$(BIN)/python -m bench.calibration --missions 12 --write BENCHMARKS.md
+
+# the observability advisory on 24 drawn radial missions, flown as planned and as advised
+bench-advisory: $(STAMP)
+	$(BIN)/python -m bench.advisory --missions 24 --write BENCHMARKS.md
 
 # an hour of the daemon under faults; needs unshare and mount (root) for the full-disk fault
 bench-soak: $(STAMP)

@@ -13,6 +13,7 @@ from typing import Any
 
 from navd import geodesy
 from navd.analysis.score import score, surfacing_error_gps
+from navd.filter.advisory import replayed
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
 from navd.records import Gps
@@ -32,6 +33,9 @@ def _read(path: str | Path) -> list[dict[str, Any]]:
             if isinstance(obj, dict):
                 rows.append(obj)
     return rows
+
+
+RANGE_STD_M = 3.0  # the range noise the advisory weighs ranges with, when none is known
 
 
 class _Grid:
@@ -170,6 +174,18 @@ def make_report(
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
+    sub = {round(e["t"], 3) for e in est if e["mode"] == "submerged"}
+    advice = [a for a in replayed(est, rng, RANGE_STD_M) if round(a.t, 3) in sub]
+    if advice:
+        weak = [a for a in advice if a.verdict == "weak_cross_range"]
+        none = sum(1 for a in advice if a.verdict == "no_ranges")
+        line = (
+            f"observability while submerged: weak across the line of sight "
+            f"{len(weak) / len(advice):.0%} of the time, no ranges {none / len(advice):.0%}"
+        )
+        if weak and weak[-1].suggest_heading_deg is not None:
+            line += f" (last advice: steer {weak[-1].suggest_heading_deg:.0f} deg)"
+        lines.append(line)
     if tru:
         sc = score([*est, *rng], tru)
         lines.append(
