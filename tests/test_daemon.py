@@ -112,6 +112,19 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     finally:
         m.stop()
 
+    # SIGTERM: exit 0, and one "stopped" line naming the log
+    assert m.navd.returncode == 0
+    said = (mission_dir.parent / "navd.stderr").read_text().splitlines()
+    stopped = [line for line in said if "stopped; log " in line]
+    assert len(stopped) == 1 and m.vehicle.logfile().name in stopped[0]
+    # the observability advisory came once a second, in the log as on zenoh
+    advisories = [o for o in read_jsonl(m.vehicle.logfile()) if o.get("type") == "advisory"]
+    assert advisories and {a["verdict"] for a in advisories} <= {
+        "ok",
+        "weak_cross_range",
+        "no_ranges",
+    }
+
     # estimates at 10 Hz (+-5 %) over the last 50 s
     recv = [t for t, _ in m.estimates]
     window = [t for t in recv if t >= recv[-1] - 50.0]
