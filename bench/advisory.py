@@ -67,7 +67,10 @@ def draw(seed: int, crossing: bool = False) -> dict[str, Any]:
             "surface_before_s": SURFACE_BEFORE_S,
             "legs": [{"heading_deg": round(heading, 1), "duration_s": rng.uniform(600, 900)}],
         },
-        "current": {"speed_mps": round(rng.uniform(0.1, 0.4), 2), "toward_deg": round(cross, 1)},
+        "current": {
+            "speed_mps": round(rng.uniform(0.1, 0.4), 2),
+            "toward_deg": round(cross % 360.0, 1),
+        },
         "sensors": {
             "declination_deg": 0.0,
             "compass_bias_deg": round(rng.uniform(-4.0, 4.0), 2),
