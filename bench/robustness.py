@@ -164,10 +164,11 @@ def _replay(d: Path, mode: str) -> tuple[list[dict], str]:
     return read_jsonl(out), ""
 
 
-def run_one(seed: int, workdir: str) -> Result:
+def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
+    """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise."""
     dr = draw(seed)
-    d = Path(workdir) / f"mc-{seed}"
-    write_mission(simulate(scenario_from_dict(dr.scenario), seed), d)
+    d = Path(workdir) / f"mc-{seed}-{noise_seed}"
+    write_mission(simulate(scenario_from_dict(dr.scenario), noise_seed or seed), d)
     truth = read_jsonl(d / "truth.jsonl")
     out_d, err_d = _replay(d, "default")
     out_t, err_t = _replay(d, "thesis")
@@ -241,12 +242,49 @@ def table(results: list[Result], n: int) -> str:
     return "\n".join(lines)
 
 
+def redraw(seed: int, n: int, workers: int) -> int:
+    """Is a flagged mission's verdict its conditions', or its one draw of noise's?"""
+    noise = [1000 + k for k in range(n)]
+    with (
+        tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp,
+        ProcessPoolExecutor(workers) as ex,
+    ):
+        results = list(ex.map(run_one, [seed] * n, [tmp] * n, noise))
+    print(f"`python -m bench.robustness --redraw {seed} --missions {n}`: mission {seed}'s")
+    print("conditions with other draws of the sensor and acoustic noise.\n")
+    print(
+        "| noise seed | default RMS | thesis RMS | default final | thesis final | limit |"
+        " default in 95 % | flagged |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for k, r in zip(noise, results, strict=True):
+        d, t = r.default, r.thesis
+        if d is None or t is None:
+            print(f"| {k} | failed: {r.error} |")
+            continue
+        limit = max(DIVERGED_FINAL_M, 2.0 * t.surfacing_m)
+        print(
+            f"| {k} | {d.rms_m:.0f} | {t.rms_m:.0f} | {d.surfacing_m:.0f} | "
+            f"{t.surfacing_m:.0f} | {limit:.0f} | {d.inside95:.2f} | "
+            f"{'yes' if r.diverged else 'no'} |"
+        )
+    return 0
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--missions", type=int, default=120)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", help="BENCHMARKS.md to update")
+    p.add_argument(
+        "--redraw",
+        type=int,
+        metavar="SEED",
+        help="mission SEED's conditions again, with --missions other draws of sensor noise",
+    )
     args = p.parse_args()
+    if args.redraw is not None:
+        return redraw(args.redraw, args.missions, args.workers)
     seeds = list(range(1, args.missions + 1))
     with (
         tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp,
