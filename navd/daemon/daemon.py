@@ -87,7 +87,12 @@ class Daemon:
         )
         self.publisher_factory = publisher_factory
         self.pub: Any = None
-        self._vitals_init(cfg, clock)
+        self.vitals = Vitals(
+            cfg.navigation.rate_hz,
+            cfg.devices.modem.ping_interval_s,
+            max(cfg.navigation.stale_input_s, 2.0),
+            t_started=clock(),
+        )
         self.devices: dict[str, Device] = make_devices(cfg, self)
         self.dt = 1.0 / cfg.navigation.rate_hz
         self.tick_lateness: deque[float] = deque(maxlen=6000)
@@ -102,18 +107,6 @@ class Daemon:
         self.internal_errors: dict[str, int] = {}
         self._t_internal_error: float | None = None
         self.zenoh_error = ""  # why the zenoh session is not open, while it is not
-
-    def _vitals_init(self, cfg: Config, clock: Callable[[], float]) -> None:
-        self._vitals = Vitals(
-            cfg.navigation.rate_hz,
-            cfg.devices.modem.ping_interval_s,
-            max(cfg.navigation.stale_input_s, 2.0),
-            t_started=clock(),
-        )
-
-    @property
-    def vitals(self) -> Vitals:
-        return self._vitals
 
     # -- records in ------------------------------------------------------------------
     def feed(self, rec: Any) -> None:

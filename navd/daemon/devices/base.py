@@ -23,12 +23,11 @@ SILENT_S = 3.0  # a streaming or polled device this long without a byte is said 
 class Host(Protocol):
     """What a device may ask of the daemon around it."""
 
+    vitals: Vitals
+
     def clock(self) -> float: ...
 
     def feed(self, rec: Any) -> None: ...
-
-    @property
-    def vitals(self) -> Vitals: ...
 
 
 class Device:
