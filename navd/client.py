@@ -154,7 +154,8 @@ class NavClient:
 
     @property
     def alive(self) -> bool:
-        """Is the daemon up (its liveliness token is there)?"""
+        """Is the daemon up (its liveliness token is there)?  A session opened a moment
+        ago may not have learnt the routes yet: ask again before concluding it is down."""
         replies = self.session.liveliness().get(f"{self.prefix}/alive", timeout=self.timeout_s)
         return any(r.ok is not None for r in replies)
 

@@ -69,8 +69,16 @@ def test_two_vehicles_one_router_one_fleet_watcher(router: str, tmp_path: Path) 
 
         # the client, through the router too
         with NavClient("auv-a", [router]) as nav:
-            assert nav.alive
-            e = nav.latest()
+            # a session just opened learns the router's routes within a moment
+            assert _until(lambda: nav.alive, 10.0)
+            latest: list[Estimate | None] = [None]
+
+            def fetched() -> bool:
+                latest[0] = nav.latest()
+                return latest[0] is not None
+
+            assert _until(fetched, 10.0)
+            e = latest[0]
             assert e is not None and e.integrity in ("ok", "degraded", "lost")
             assert nav.set_beacon("spare", 37.05, -80.66, 2.0).ok
             refused = nav.set_beacon("spare", 91.0, 0.0)
