@@ -186,8 +186,8 @@ def make_report(
         if weak and weak[-1].suggest_heading_deg is not None:
             line += f" (last advice: steer {weak[-1].suggest_heading_deg:.0f} deg)"
         lines.append(line)
-    if tru:
-        sc = score([*est, *rng], tru)
+    sc = score([*est, *rng], tru) if tru else None
+    if sc is not None and math.isfinite(sc.rms_m):  # truth on the estimates' time steps
         lines.append(
             f"against the truth, submerged: RMS {sc.rms_m:.1f} m, at surfacing "
             f"{sc.surfacing_m:.1f} m, truth inside the 95 % ellipse {sc.inside95:.0%}"
