@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from navd.analysis.replay import run_navigator
-from navd.analysis.score import surfacing_error_gps
+from navd.analysis.score import first_fix_after, surfacing_error_gps
 from navd.config import Config
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementLog, read_measurement_log
@@ -71,10 +71,9 @@ class Mission:
 
 def _surfacing(last: dict[str, Any], fixes: list[Gps]) -> Surfacing | None:
     found = surfacing_error_gps([last], fixes)
-    if found is None:
+    fix = first_fix_after(last["t"], fixes)
+    if found is None or fix is None or fix.lat is None or fix.lon is None:
         return None
-    fix = next(f for f in fixes if f.t > last["t"] and f.lat is not None)
-    assert fix.lat is not None and fix.lon is not None
     return Surfacing(last["t"], last["lat"], last["lon"], fix.lat, fix.lon, *found)
 
 

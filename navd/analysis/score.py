@@ -136,8 +136,12 @@ def surfacing_error_gps(
             last_sub = e
     if last_sub is None:
         return None
-    for f in fixes:
-        if f.t > last_sub["t"] and f.lat is not None and f.lon is not None:
-            dn, de = _ne_error(last_sub["lat"], last_sub["lon"], f.lat, f.lon)
-            return math.hypot(dn, de), f.t - last_sub["t"]
-    return None
+    f = first_fix_after(last_sub["t"], fixes)
+    if f is None or f.lat is None or f.lon is None:
+        return None
+    dn, de = _ne_error(last_sub["lat"], last_sub["lon"], f.lat, f.lon)
+    return math.hypot(dn, de), f.t - last_sub["t"]
+
+
+def first_fix_after(t: float, fixes: list[Gps]) -> Gps | None:
+    return next((f for f in fixes if f.t > t and f.lat is not None and f.lon is not None), None)

@@ -103,7 +103,7 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
 
         json_channels: dict[str, Any] = {}
 
-        def json(topic: str, t: float, body: dict[str, Any]) -> None:
+        def as_json(topic: str, t: float, body: dict[str, Any]) -> None:
             ch = json_channels.get(topic)
             if ch is None:
                 schema = {"type": "object", "title": topic, "additionalProperties": True}
@@ -114,11 +114,11 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
             counts[topic] = counts.get(topic, 0) + 1
 
         for d in m.decisions:
-            json("/nav/range", d["t"], d)
+            as_json("/nav/range", d["t"], d)
         for h in m.health:
-            json("/nav/health", h["t"], h)
+            as_json("/nav/health", h["t"], h)
         for rec in m.records:
-            json(f"/sensors/{TYPE_NAMES[type(rec)]}", rec.t, record_to_json(rec))
+            as_json(f"/sensors/{TYPE_NAMES[type(rec)]}", rec.t, record_to_json(rec))
 
         log = LogChannel("/nav/log", context=ctx)
         levels = {"info": LogLevel.Info, "warning": LogLevel.Warning, "error": LogLevel.Error}
