@@ -116,6 +116,8 @@ def test_no_finite_record_stream_makes_the_navigator_raise(mode: str, recs: list
     for r in recs:
         out += nav.feed(r)
     out += nav.advance(recs[-1].t + 1.0)
+    heading = next((o["heading_deg"] for o in reversed(out) if o["type"] == "estimate"), None)
+    out.append(nav.advisory(recs[-1].t + 1.0, heading))  # the daemon's 1 Hz advisory too
     _check(out)
     if mode != "vlbl":
         _check(nav.smoothed())
