@@ -58,6 +58,18 @@ def _decode(payload: Any) -> dict[str, Any] | None:
     return obj if isinstance(obj, dict) else None
 
 
+def _typed(cls: Any, payload: Any) -> Any:
+    """The payload as ``cls``, or None for what is not navd's schema (another
+    publisher under the same keys must not raise in zenoh's thread)."""
+    d = _decode(payload)
+    if d is None:
+        return None
+    try:
+        return from_dict(cls, d)
+    except TypeError:  # a field the schema requires is missing
+        return None
+
+
 class NavClient:
     """One vehicle's navigation over zenoh (keys in docs/zenoh.md)."""
 
@@ -67,12 +79,15 @@ class NavClient:
         connect: list[str] | None = None,
         session: Any = None,
         timeout_s: float = 2.0,
+        config: zenoh.Config | None = None,
     ) -> None:
+        """``config``: a zenoh config (e.g. with the user and password of
+        config/zenoh.json5's access control); ``session``: an open session to share."""
         self.vehicle = vehicle
         self.prefix = f"auv/{vehicle}/nav"
         self.timeout_s = timeout_s
         self._own = session is None
-        self.session = session if session is not None else open_session(connect)
+        self.session = session if session is not None else open_session(connect, config)
         self._subs: list[Any] = []
 
     def __enter__(self) -> NavClient:
@@ -94,9 +109,9 @@ class NavClient:
         """The daemon's newest estimate (its ``latest`` queryable), or None."""
         for reply in self.session.get(f"{self.prefix}/latest", timeout=self.timeout_s):
             if reply.ok is not None:
-                d = _decode(reply.ok.payload)
-                if d is not None:
-                    return from_dict(Estimate, d)
+                e = _typed(Estimate, reply.ok.payload)
+                if e is not None:
+                    return e
         return None
 
     def subscribe(
@@ -111,27 +126,27 @@ class NavClient:
             cb_a = on_advisory
 
             def adv(sample: Any) -> None:
-                d = _decode(sample.payload)
-                if d is not None:
-                    cb_a(from_dict(Advisory, d))
+                a = _typed(Advisory, sample.payload)
+                if a is not None:
+                    cb_a(a)
 
             self._subs.append(self.session.declare_subscriber(f"{self.prefix}/advisory", adv))
         if on_estimate is not None:
             cb_e = on_estimate
 
             def est(sample: Any) -> None:
-                d = _decode(sample.payload)
-                if d is not None:
-                    cb_e(from_dict(Estimate, d))
+                e = _typed(Estimate, sample.payload)
+                if e is not None:
+                    cb_e(e)
 
             self._subs.append(self.session.declare_subscriber(f"{self.prefix}/estimate", est))
         if on_range is not None:
             cb_r = on_range
 
             def rng(sample: Any) -> None:
-                d = _decode(sample.payload)
-                if d is not None:
-                    cb_r(from_dict(RangeDecision, d))
+                r = _typed(RangeDecision, sample.payload)
+                if r is not None:
+                    cb_r(r)
 
             self._subs.append(self.session.declare_subscriber(f"{self.prefix}/range", rng))
 
@@ -186,9 +201,14 @@ class NavClient:
 class NavFleet:
     """Every vehicle's estimates under ``auv/*``, and which daemons are alive."""
 
-    def __init__(self, connect: list[str] | None = None, session: Any = None) -> None:
+    def __init__(
+        self,
+        connect: list[str] | None = None,
+        session: Any = None,
+        config: zenoh.Config | None = None,
+    ) -> None:
         self._own = session is None
-        self.session = session if session is not None else open_session(connect)
+        self.session = session if session is not None else open_session(connect, config)
         self.latest: dict[str, Estimate] = {}
         self.up: set[str] = set()
         self._subs = [
@@ -203,9 +223,9 @@ class NavFleet:
         return str(key).split("/")[1]
 
     def _on_estimate(self, sample: Any) -> None:
-        d = _decode(sample.payload)
-        if d is not None:
-            self.latest[self._vehicle(sample.key_expr)] = from_dict(Estimate, d)
+        e = _typed(Estimate, sample.payload)
+        if e is not None:
+            self.latest[self._vehicle(sample.key_expr)] = e
 
     def _on_alive(self, sample: Any) -> None:
         name = self._vehicle(sample.key_expr)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from navd.formats import jsonlines
 from navd.schema import Estimate, RangeDecision, from_dict, outputs_of, to_dict
 
 
@@ -39,3 +40,20 @@ def test_decisions_are_found_in_replay_output_and_daemon_log_alike() -> None:
     for rows in ([est, dec], [est, measured, {**dec, "type": "decision"}]):
         e, r = outputs_of(rows)
         assert e == [est] and len(r) == 1 and r[0]["type"] == "range" and r[0]["accepted"]
+
+
+def test_the_client_ignores_what_is_not_navds_schema() -> None:
+    from navd.client import _typed
+
+    class Payload:
+        def __init__(self, b: bytes) -> None:
+            self.b = b
+
+        def to_bytes(self) -> bytes:
+            return self.b
+
+    assert _typed(Estimate, Payload(b'{"t": 1}')) is None  # required fields missing
+    assert _typed(Estimate, Payload(b"not json")) is None
+    assert _typed(Estimate, Payload(b"[1, 2]")) is None
+    good = Payload(jsonlines.dumps(to_dict(_estimate())))
+    assert _typed(Estimate, good) == _estimate()
