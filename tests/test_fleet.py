@@ -95,6 +95,9 @@ def test_two_vehicles_one_router_one_fleet_watcher(router: str, tmp_path: Path) 
             got = asyncio.run(asyncio.wait_for(three(), 10.0))
             assert [x.t for x in got] == sorted(x.t for x in got)
 
+            answer = nav.reset()  # last: it restarts auv-a's filter
+            assert answer.ok or "force" in answer.error  # refused only while submerged
+
         b.stop()  # one vehicle's daemon stops: its liveliness token goes
         assert _until(lambda: "auv-b" not in fleet.up, 15.0), fleet.up
         assert "auv-a" in fleet.up
@@ -105,3 +108,19 @@ def test_two_vehicles_one_router_one_fleet_watcher(router: str, tmp_path: Path) 
         for v in (a, b):
             v.stop()
             v.kill()
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_the_shipped_fleet_configs_are_valid() -> None:
+    """config/fleet: the vehicle overlay passes check-config on the vehicle's config, and
+    the shore router's file opens as a zenoh router (here on a loopback port)."""
+    from navd.config import check_for_run, load_config
+
+    cfg = load_config(ROOT / "config" / "navd.yaml", [ROOT / "config" / "fleet" / "vehicle.yaml"])
+    check_for_run(cfg)
+    assert cfg.vehicle.name == "auv-1" and cfg.zenoh.connect == ["tcp/10.0.0.1:7447"]
+    router = zenoh.Config.from_file(str(ROOT / "config" / "fleet" / "shore-router.json5"))
+    router.insert_json5("listen/endpoints", f'["tcp/127.0.0.1:{free_port()}"]')
+    zenoh.open(router).close()
