@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from navd.records import Range, TravelTime
+
 __all__ = [
     "mackenzie",
     "coppens",
@@ -108,3 +110,26 @@ def rescale_range(range_m: float, modem_mps: float, water_mps: float) -> float:
     the water's speed gives the true range.
     """
     return range_m * (water_mps / modem_mps)
+
+
+def slant_range(
+    rec: Range | TravelTime,
+    water_mps: float,
+    modem_mps: float,
+    turnaround_s: float,
+    as_reported: bool = False,
+) -> float:
+    """The range a record gives, with the water's sound speed ``water_mps``.
+
+    A travel time is turned into a range after the beacon's turnaround.  A modem's
+    range is re-derived from its own round trip when it reports one (right whatever
+    sound speed the modem was set to), else rescaled from the modem's sound speed;
+    ``as_reported`` keeps the modem's range as it is (the thesis does).
+    """
+    if isinstance(rec, TravelTime):
+        return travel_time_to_range(rec.twtt_s, water_mps, turnaround_s)
+    if as_reported:
+        return rec.m
+    if rec.twtt_s is not None:
+        return travel_time_to_range(rec.twtt_s, water_mps, 0.0)
+    return rescale_range(rec.m, modem_mps, water_mps)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from navd import geodesy
-from navd.acoustics import rescale_range, travel_time_to_range
+from navd.acoustics import slant_range
 from navd.config import Beacon, Config
 from navd.filter import compass
 from navd.filter.advisory import Observability
@@ -317,16 +317,9 @@ class Navigator:
         out.beacon_lon = math.degrees(fix.lon)
         out.beacon_depth = fix.depth
         c_water = self.sound.at(0.5 * (self.depth.m + fix.depth))
-        if isinstance(rec, TravelTime):
-            rng = travel_time_to_range(rec.twtt_s, c_water, fix.turnaround_s)
-        elif self.filter.ranges_as_reported:
-            rng = rec.m
-        elif rec.twtt_s is not None:
-            # the modem's own round trip (its turnaround already taken out): right
-            # whatever sound speed the modem was set to
-            rng = travel_time_to_range(rec.twtt_s, c_water, 0.0)
-        else:
-            rng = rescale_range(rec.m, self.sound.modem_mps, c_water)
+        rng = slant_range(
+            rec, c_water, self.sound.modem_mps, fix.turnaround_s, self.filter.ranges_as_reported
+        )
         out.range_m = rng
         if not 0.0 < rng <= self.nav.gate.max_range_m:
             return refuse("range_out_of_bounds")
