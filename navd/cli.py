@@ -84,10 +84,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_foxglove(args: argparse.Namespace) -> int:
+    from navd.client import endpoints
     from navd.foxglove_bridge import serve
 
-    connect = args.connect or list(_config(args).zenoh.listen)
-    return serve(connect, args.host, args.port, args.seconds)
+    z = _config(args).zenoh
+    return serve(endpoints(z.listen, z.connect, args.connect), args.host, args.port, args.seconds)
 
 
 def _cmd_check_config(args: argparse.Namespace) -> int:
@@ -264,12 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument(
         "--fleet", action="store_true", help="every vehicle under auv/*, and which are alive"
     )
-    w.add_argument(
-        "--connect",
-        action="append",
-        metavar="ENDPOINT",
-        help="zenoh endpoint to connect to (a router for a fleet), e.g. tcp/10.0.0.1:7447",
-    )
+    _connect_option(w)
     w.set_defaults(func=_cmd_watch)
 
     cap = sub.add_parser(
@@ -316,12 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     fg.add_argument("--config", help="a config whose zenoh endpoints to connect to")
     _site_option(fg)
-    fg.add_argument(
-        "--connect",
-        action="append",
-        metavar="ENDPOINT",
-        help="zenoh endpoint (a vehicle or a router), e.g. tcp/10.0.0.1:7447",
-    )
+    _connect_option(fg)
     fg.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
     fg.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
     fg.add_argument("--seconds", type=float, help="stop after this long")
@@ -339,6 +330,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     c.set_defaults(func=_cmd_check_config)
     return p
+
+
+def _connect_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="zenoh endpoint (a vehicle, or a router for a fleet), e.g. tcp/10.0.0.1:7447; "
+        "else the config's zenoh.connect, else its zenoh.listen",
+    )
 
 
 def _site_option(p: argparse.ArgumentParser) -> None:

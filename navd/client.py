@@ -70,6 +70,21 @@ def _typed(cls: Any, payload: Any) -> Any:
         return None
 
 
+def _typed_callback(cls: Any, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+    def on_sample(sample: Any) -> None:
+        x = _typed(cls, sample.payload)
+        if x is not None:
+            callback(x)
+
+    return on_sample
+
+
+def endpoints(listen: list[str], connect: list[str], asked: list[str] | None) -> list[str]:
+    """Where a tool connects: where it was told, else where the daemon connects (a
+    router), else where the daemon listens."""
+    return list(asked or connect or listen)
+
+
 class NavClient:
     """One vehicle's navigation over zenoh (keys in docs/zenoh.md)."""
 
@@ -122,33 +137,17 @@ class NavClient:
     ) -> None:
         """Call back on every estimate (10 Hz), range decision and observability
         advisory (1 Hz), on a zenoh thread."""
-        if on_advisory is not None:
-            cb_a = on_advisory
-
-            def adv(sample: Any) -> None:
-                a = _typed(Advisory, sample.payload)
-                if a is not None:
-                    cb_a(a)
-
-            self._subs.append(self.session.declare_subscriber(f"{self.prefix}/advisory", adv))
-        if on_estimate is not None:
-            cb_e = on_estimate
-
-            def est(sample: Any) -> None:
-                e = _typed(Estimate, sample.payload)
-                if e is not None:
-                    cb_e(e)
-
-            self._subs.append(self.session.declare_subscriber(f"{self.prefix}/estimate", est))
-        if on_range is not None:
-            cb_r = on_range
-
-            def rng(sample: Any) -> None:
-                r = _typed(RangeDecision, sample.payload)
-                if r is not None:
-                    cb_r(r)
-
-            self._subs.append(self.session.declare_subscriber(f"{self.prefix}/range", rng))
+        for kind, cls, callback in (
+            ("estimate", Estimate, on_estimate),
+            ("range", RangeDecision, on_range),
+            ("advisory", Advisory, on_advisory),
+        ):
+            if callback is not None:
+                self._subs.append(
+                    self.session.declare_subscriber(
+                        f"{self.prefix}/{kind}", _typed_callback(cls, callback)
+                    )
+                )
 
     async def estimates(self, maxsize: int = 64) -> AsyncIterator[Estimate]:
         """Every estimate, in the event loop; the oldest are dropped if it falls behind."""

@@ -12,7 +12,7 @@ import threading
 import time
 from collections import deque
 
-from navd.client import NavClient, NavFleet
+from navd.client import NavClient, NavFleet, endpoints
 from navd.config import Config
 from navd.schema import Advisory, Estimate, RangeDecision
 
@@ -40,8 +40,7 @@ def format_advisory(a: Advisory) -> str:
 
 
 def _endpoints(cfg: Config, connect: list[str] | None) -> list[str]:
-    """Where to connect: as asked, else where the daemon connects or listens."""
-    return list(connect or cfg.zenoh.connect or cfg.zenoh.listen)
+    return endpoints(cfg.zenoh.listen, cfg.zenoh.connect, connect)
 
 
 def watch(

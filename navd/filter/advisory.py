@@ -18,6 +18,7 @@ import math
 from collections import deque
 
 from navd import geodesy
+from navd.filter.common import principal_axes
 from navd.schema import Advisory
 
 WINDOW_S = 300.0  # the last five minutes of ranges
@@ -60,11 +61,9 @@ class Observability:
         inn = sum(w * un * un for _, un, _, w in self._los)
         iee = sum(w * ue * ue for _, _, ue, w in self._los)
         ine = sum(w * un * ue for _, un, ue, w in self._los)
-        mean, half = 0.5 * (inn + iee), math.hypot(0.5 * (inn - iee), ine)
-        big, small = mean + half, max(mean - half, 0.0)
-        # the weak axis: the eigenvector of the smallest eigenvalue, as a direction from north
-        strong = 0.5 * math.degrees(math.atan2(2.0 * ine, inn - iee))
-        weak = (strong + 90.0) % 180.0
+        big, small, strong = principal_axes(inn, iee, ine)
+        small = max(small, 0.0)
+        weak = (math.degrees(strong) + 90.0) % 180.0  # the least informed axis, from north
         bearings = [math.degrees(math.atan2(ue, un)) for _, un, ue, _ in self._los]
         ref = bearings[-1]
         offsets = [_wrap180(b - ref) for b in bearings]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -134,6 +135,15 @@ class NavFilter(Protocol):
     def state_apply(self, x: Any, dx: np.ndarray) -> Any: ...
 
     def estimate_of(self, x: Any, P: np.ndarray) -> StateEstimate: ...
+
+
+def principal_axes(nn: float, ee: float, ne: float) -> tuple[float, float, float]:
+    """Eigenvalues (largest, smallest) of the symmetric 2 x 2 matrix [[nn, ne], [ne, ee]]
+    in north-east axes, and the direction of the largest's axis in radians from north
+    towards east: for a position covariance, the error ellipse's axes."""
+    mean = 0.5 * (nn + ee)
+    root = math.sqrt(0.25 * (nn - ee) ** 2 + ne * ne)
+    return mean + root, mean - root, 0.5 * math.atan2(2.0 * ne, nn - ee)
 
 
 def joseph_update(

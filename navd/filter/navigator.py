@@ -22,7 +22,13 @@ from navd.config import Beacon, Config
 from navd.filter import compass
 from navd.filter.advisory import Observability
 from navd.filter.beacons import BeaconResolver
-from navd.filter.common import GateDecision, NavFilter, RangeMeas, StateEstimate
+from navd.filter.common import (
+    GateDecision,
+    NavFilter,
+    RangeMeas,
+    StateEstimate,
+    principal_axes,
+)
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
@@ -405,7 +411,7 @@ class Navigator:
             return None
         est = self.filter.estimate()
         heading, speed = self._speed_heading(t)
-        std_max = math.sqrt(max(0.0, _largest_eig(est.var_n, est.var_e, est.cov_ne)))
+        std_max = math.sqrt(max(0.0, principal_axes(est.var_n, est.var_e, est.cov_ne)[0]))
         integrity = self.integrity.assess(std_max)
         r = Estimate(
             round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.depth.m, self.mode(t), integrity
@@ -465,11 +471,6 @@ def _fill(r: Estimate, est: StateEstimate) -> None:
     r.std_n = math.sqrt(max(0.0, est.var_n))
     r.std_e = math.sqrt(max(0.0, est.var_e))
     r.cov_ne = est.cov_ne
-
-
-def _largest_eig(a: float, c: float, b: float) -> float:
-    """Largest eigenvalue of the symmetric 2 x 2 matrix [[a, b], [b, c]]."""
-    return 0.5 * (a + c) + math.sqrt(0.25 * (a - c) ** 2 + b * b)
 
 
 _HANDLERS: dict[type, Any] = {

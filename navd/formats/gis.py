@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from navd import geodesy
+from navd.filter.common import principal_axes
 
 if TYPE_CHECKING:
     from navd.analysis.export import Mission
@@ -81,10 +82,8 @@ def ellipse95(e: dict[str, Any]) -> list[tuple[float, float]]:
     """The 95 % position ellipse of an estimate, as (lat, lon) degrees around it."""
     vn, ve, c = e["std_n"] ** 2, e["std_e"] ** 2, e.get("cov_ne", 0.0)
     # eigen-decomposition of [[vn, c], [c, ve]]
-    mean, diff = 0.5 * (vn + ve), 0.5 * (vn - ve)
-    root = math.hypot(diff, c)
-    l1, l2 = max(mean + root, 0.0), max(mean - root, 0.0)
-    theta = 0.5 * math.atan2(2.0 * c, vn - ve)  # major axis from north, towards east
+    l1, l2, theta = principal_axes(vn, ve, c)  # theta: the major axis, from north
+    l1, l2 = max(l1, 0.0), max(l2, 0.0)
     a, b = math.sqrt(CHI2_2DOF_95 * l1), math.sqrt(CHI2_2DOF_95 * l2)
     lat0, lon0 = math.radians(e["lat"]), math.radians(e["lon"])
     pts = []
