@@ -99,6 +99,11 @@ def validate_beacon(body: dict[str, Any]) -> str | None:
     return implausible(SetBeacon(0.0, c.name, c.lat, c.lon, c.depth))
 
 
+def encode(seq: int, body: dict[str, Any]) -> bytes:
+    """A message as it goes on zenoh: the schema version, its sequence number, the body."""
+    return jsonlines.dumps({"schema": SCHEMA_VERSION, "seq": seq, **body})
+
+
 class TokenBucket:
     """At most ``rate`` events a second on average, ``burst`` at once."""
 
@@ -175,7 +180,7 @@ class Publisher:
 
     def put(self, kind: str, body: dict[str, Any]) -> bytes:
         self.seq[kind] += 1
-        payload = jsonlines.dumps({"schema": SCHEMA_VERSION, "seq": self.seq[kind], **body})
+        payload = encode(self.seq[kind], body)
         if kind == "estimate":
             with self._lock:
                 self._latest = payload
