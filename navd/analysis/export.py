@@ -112,10 +112,13 @@ def load_mission(paths: list[str | Path], cfg: Config, smooth: bool = False) -> 
         part = read_measurement_log(p)
         log.header = log.header or part.header
         log.records.extend(part.records)
-    est, dec = outputs_of(run_navigator(log, cfg).outputs)
+    result = run_navigator(log, cfg, smooth=smooth)
     smoothed: list[dict[str, Any]] = []
     if smooth:
-        smoothed, _ = outputs_of(run_navigator(log, cfg, smooth=True).outputs)
+        smoothed, _ = outputs_of(result.outputs)
+        est, dec = outputs_of(result.filtered)
+    else:
+        est, dec = outputs_of(result.outputs)
     fixes = [r for r in log.records if isinstance(r, Gps) and r.fix and r.lat is not None]
     return Mission(
         est,

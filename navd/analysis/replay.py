@@ -25,6 +25,8 @@ class ReplayResult:
     skipped: list[Skipped]
     counters: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    # with smoothing, the estimates as the filter made them (outputs has them smoothed)
+    filtered: list[dict[str, Any]] = field(default_factory=list)
 
 
 def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
@@ -37,10 +39,12 @@ def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> Rep
         outputs.extend(nav.feed(rec))
     if log.records:
         outputs.extend(nav.advance(log.records[-1].t))
+    filtered: list[dict[str, Any]] = []
     if smooth:
+        filtered = outputs
         smoothed = iter(nav.smoothed())
         outputs = [next(smoothed) if o["type"] == "estimate" else o for o in outputs]
-    return ReplayResult(outputs, log.skipped, dict(nav.counters), nav.warnings)
+    return ReplayResult(outputs, log.skipped, dict(nav.counters), nav.warnings, filtered)
 
 
 def write_outputs(outputs: list[dict[str, Any]], fh: IO[str]) -> None:
