@@ -8,17 +8,14 @@ them, so an unknown key, a wrong type, a non-finite or out-of-range value is a
 
 from __future__ import annotations
 
-import copy
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
-from navd import validation
+from navd import files, validation
 from navd.acoustics import SoundSpeed
-from navd.validation import Invalid, show
+from navd.validation import Invalid
 from navd.validation import number as _num
 
 __all__ = ["ConfigError", "Config", "load_config", "config_from_dict", "Beacon", "build"]
@@ -153,6 +150,9 @@ class SiteConfig:
     surface_pressure_from_gps: bool = True
     gravity_mps2: float = _num(9.80665, lo=9.7, hi=9.9)
     surface_altitude_m: float | None = _num(None, lo=-200.0, hi=5000.0)  # type: ignore[arg-type]
+    # the geoid above the ellipsoid here (EGM96 or the chart's), for receivers that give
+    # only a height above sea level: their fixes' ellipsoidal height is MSL plus this
+    geoid_separation_m: float | None = _num(None, lo=-150.0, hi=150.0)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True, slots=True)
@@ -160,6 +160,28 @@ class SerialPortConfig:
     port: str = ""  # e.g. /dev/navd-ahrs (udev name); required by navd run when enabled
     baudrate: int = _num(9600, lo=300, hi=4_000_000)
     enabled: bool = True
+
+    @property
+    def url(self) -> str:
+        """What the transport opens."""
+        return self.port
+
+
+@dataclass(frozen=True, slots=True)
+class GpsDevice(SerialPortConfig):
+    # serial: NMEA on ``port``; gpsd: gpsd's JSON from ``host``:``gpsd_port``, for a
+    # receiver shared with chrony (docs/protocols.md)
+    source: Literal["serial", "gpsd"] = "serial"
+    host: str = "127.0.0.1"
+    gpsd_port: int = _num(2947, lo=1, hi=65535)
+
+    @property
+    def url(self) -> str:
+        """What the transport opens: the serial port, or gpsd's socket."""
+        if self.source == "gpsd":
+            host = f"[{self.host}]" if ":" in self.host else self.host
+            return f"socket://{host}:{self.gpsd_port}"
+        return self.port
 
 
 @dataclass(frozen=True, slots=True)
@@ -201,7 +223,7 @@ class ModemDevice(SerialPortConfig):
 @dataclass(frozen=True, slots=True)
 class DevicesConfig:
     ahrs: AhrsDevice = field(default_factory=AhrsDevice)
-    gps: SerialPortConfig = field(default_factory=SerialPortConfig)
+    gps: GpsDevice = field(default_factory=GpsDevice)
     pressure: PressureDevice = field(default_factory=PressureDevice)
     motor: MotorDevice = field(default_factory=MotorDevice)
     modem: ModemDevice = field(default_factory=ModemDevice)
@@ -265,6 +287,8 @@ def check_for_run(cfg: Config) -> None:
     """What ``navd run`` needs beyond a valid file: a port for every enabled device."""
     for name in ("ahrs", "gps", "pressure", "motor", "modem"):
         dev = getattr(cfg.devices, name)
+        if isinstance(dev, GpsDevice) and dev.source == "gpsd":
+            continue  # gpsd has the port
         if dev.enabled and not dev.port:
             raise ConfigError(f"devices.{name}.port: required by navd run (or enabled: false)")
     if not cfg.vehicle.name.replace("-", "").replace("_", "").isalnum():
@@ -309,41 +333,20 @@ def config_from_dict(data: Any) -> Config:
     return cfg
 
 
-class _DuplicateKey(Exception):
-    def __init__(self, key: Any, line: int) -> None:
-        super().__init__(f"line {line}: duplicate key {show(key)}")
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """YAML's safe loader, refusing a key given twice (YAML keeps the last, silently)."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
-        seen: set[Any] = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
-            try:
-                dup = key in seen
-                seen.add(key)
-            except TypeError:  # an unhashable key: the schema refuses it later
-                continue
-            if dup:
-                raise _DuplicateKey(key, key_node.start_mark.line + 1)
-        return super().construct_mapping(node, deep=deep)
-
-
-def parse_yaml(text: str) -> Any:
-    """Parse YAML as the config loader does; raises ``yaml.YAMLError`` or names a duplicate."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-
-
 def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    """``over`` on top of ``base``: mappings merged key by key, anything else replaced."""
-    out = copy.deepcopy(base)
+    """``over`` on top of ``base``: mappings merged key by key, anything else replaced.
+
+    New mappings are made only along the paths both have; everything else is shared,
+    not copied, so the time is that of walking ``over`` (whose expansion the YAML
+    loader bounds), whatever aliases either holds.  Neither input is changed.
+    """
+    out = dict(base)
     for k, v in over.items():
-        if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = deep_merge(out[k], v)
+        old = out.get(k)
+        if isinstance(v, dict) and isinstance(old, dict):
+            out[k] = deep_merge(old, v)
         else:
-            out[k] = copy.deepcopy(v)
+            out[k] = v
     return out
 
 
@@ -352,17 +355,9 @@ MAX_OVERLAY_DEPTH = 8  # overlays of overlays: deeper is a loop or a mistake
 
 def _read_yaml(p: Path) -> Any:
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{p}: cannot read config ({exc.__class__.__name__}: {exc})") from None
-    try:
-        return parse_yaml(text)
-    except _DuplicateKey as exc:
-        raise ConfigError(f"{p}: {exc}") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{p}:{where} invalid YAML") from None
+        return files.load_yaml(p)
+    except files.FileRefused as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def read_with_overlays(p: Path, depth: int = 0) -> dict[str, Any]:

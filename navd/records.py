@@ -9,6 +9,7 @@ radians at its edge.
 from __future__ import annotations
 
 import math
+import re
 import sys
 from dataclasses import dataclass, fields
 
@@ -57,11 +58,16 @@ class Gps:
     t: float
     lat: float | None
     lon: float | None
-    alt: float | None  # ellipsoidal height
+    # ellipsoidal height: only when the receiver gave the geoid separation (NMEA) or
+    # the height above the ellipsoid itself (gpsd's altHAE); never an MSL height
+    alt: float | None
     fix: int  # 0 none, 1 GPS, 2 DGPS
     hdop: float | None = None
     # the receiver's GGA quality: 1 GPS, 2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float, 9 WAAS
     quality: int | None = None
+    alt_msl: float | None = None  # height above mean sea level (the geoid), as received
+    geoid_sep: float | None = None  # geoid above the ellipsoid, when the receiver said
+    sats: int | None = None  # satellites used, when the receiver said
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +113,13 @@ class Reset:
     """
 
     t: float
+
+
+#: beacons navd keeps, configured and commanded: bounds what a command (or a log of
+#: commands) can make it keep
+MAX_BEACONS = 16
+#: beacon names: short, printable, safe in a log line and a zenoh key
+BEACON_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,6 +192,9 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (Gps, "alt"): (-1000.0, 10_000.0),
     (Gps, "hdop"): (0.0, 1000.0),
     (Gps, "quality"): (0, 9),
+    (Gps, "alt_msl"): (-1000.0, 10_000.0),
+    (Gps, "geoid_sep"): (-150.0, 150.0),
+    (Gps, "sats"): (0, 999),
     (Range, "m"): (0.0, 1e6),
     (Range, "twtt_s"): (0.0, 1e3),
     (Range, "speed_mps"): (-100.0, 100.0),

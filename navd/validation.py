@@ -16,7 +16,7 @@ import typing
 from dataclasses import MISSING, field, fields, is_dataclass
 from typing import Any, Literal
 
-__all__ = ["Invalid", "build", "number", "show", "text"]
+__all__ = ["Invalid", "LongInteger", "build", "excerpt", "number", "show", "text"]
 
 
 class Invalid(Exception):
@@ -41,6 +41,16 @@ def text(default: Any, pattern: str, what: str) -> Any:
     return field(default=default, metadata={"pattern": re.compile(pattern), "what": what})
 
 
+_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,39}")
+
+
+def excerpt(value: Any, limit: int = 12) -> str:
+    """A short, escaped excerpt of what a file said (a key), never more of its bytes."""
+    text = value if isinstance(value, str) else repr(value)
+    shown = text[:limit].encode("unicode_escape").decode("ascii").replace("'", "\\'")
+    return shown + ("..." if len(text) > limit else "")
+
+
 _SHOW = reprlib.Repr()
 _SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict = 1, 4, 4
 _SHOW.maxstring = _SHOW.maxother = _SHOW.maxlong = 40
@@ -55,7 +65,23 @@ def show(value: Any) -> str:
     return _SHOW.repr(value)
 
 
+class LongInteger:
+    """What a file's integer of too many digits reads as: never converted (Python's own
+    limit raises at 4,300 digits, and the conversion itself is quadratic), so the
+    validation can refuse it naming its key."""
+
+    __slots__ = ("digits",)
+
+    def __init__(self, digits: int) -> None:
+        self.digits = digits
+
+    def __repr__(self) -> str:
+        return f"<an integer of {self.digits} digits>"
+
+
 def check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
+    if isinstance(value, LongInteger):
+        _fail(path, f"an integer of {value.digits} digits")
     if isinstance(value, bool) or not isinstance(value, int | float):
         _fail(path, f"expected a number, got {type(value).__name__} {show(value)}")
     try:
@@ -132,8 +158,9 @@ def build(cls: type, data: Any, path: str = "") -> Any:
     known = {f.name: f for f in fields(cls)}
     for key in data:
         if key not in known:
-            # a key is shown as written, or quoted when it holds what a line cannot
-            name = key if isinstance(key, str) and key.isprintable() else show(key)
+            # a key is shown as written when it looks like one; anything else (a line of
+            # a file that is no config, such as /etc/shadow) only as a short excerpt
+            name = key if isinstance(key, str) and _KEY.fullmatch(key) else f"'{excerpt(key)}'"
             _fail(f"{path}.{name}" if path else name, "unknown key")
     kwargs = {}
     for name, f in known.items():

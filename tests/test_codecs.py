@@ -5,13 +5,15 @@ The protocol sources are listed in docs/protocols.md.
 
 from __future__ import annotations
 
+import itertools
 import math
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from navd.drivers import ahrs, castle, gps, keller, modem
+from navd.drivers import ahrs, castle, gps, gpsd, keller, modem
 from navd.records import Attitude, Gps, Pressure, Rpm
 
 # -- golden vectors -------------------------------------------------------------------
@@ -70,7 +72,7 @@ def test_nmea_golden() -> None:
     assert fix.fix == 1 and fix.hdop == pytest.approx(0.9)
     assert when.valid and when.utc.isoformat() == "1994-03-23T12:35:19+00:00"
     (nofix,) = d.feed(NMEA_NO_FIX, 2.0)
-    assert nofix == Gps(2.0, None, None, None, 0, 99.9, 0)
+    assert nofix == Gps(2.0, None, None, None, 0, 99.9, 0, sats=0)
 
 
 def test_castle_golden() -> None:
@@ -131,6 +133,7 @@ def test_binary_decoders_resync_and_count_every_byte(make, frame, how, garbage, 
     "make",
     [
         gps.NmeaDecoder,
+        gpsd.GpsdDecoder,
         modem.ModemDecoder,
         ahrs.AhrsDecoder,
         castle.CastleDecoder,
@@ -148,7 +151,10 @@ def test_decoders_never_raise_on_random_input(make, data) -> None:
                 assert not (isinstance(x, float) and not math.isfinite(x))
 
 
-@given(garbage=st.binary(max_size=80).filter(lambda b: b"$" not in b), chunk=st.integers(1, 9))
+@given(
+    garbage=st.binary(max_size=80).filter(lambda b: not set(b) & set(b"$\r\n")),
+    chunk=st.integers(1, 9),
+)
 @settings(max_examples=150, deadline=None)
 def test_nmea_resyncs_after_garbage_and_counts_it(garbage: bytes, chunk: int) -> None:
     dec = gps.NmeaDecoder()
@@ -159,7 +165,8 @@ def test_nmea_resyncs_after_garbage_and_counts_it(garbage: bytes, chunk: int) ->
         recs += dec.feed(stream[i : i + chunk], 0.0)
     assert [r.lat for r in recs] == [pytest.approx(48.1173)]
     assert dec.stats.bad_checksum == 1
-    assert dec.stats.skipped_bytes == len(garbage) + 20 + len(bad)
+    # line ends are not garbage: the bad sentence costs its bytes up to its CR
+    assert dec.stats.skipped_bytes == len(garbage) + 20 + len(bad) - 2
 
 
 @given(garbage=st.binary(max_size=80).filter(lambda b: b"\r" not in b and b"\n" not in b))
@@ -234,3 +241,46 @@ def test_castle_slides_over_a_window_that_passes_the_check_by_chance() -> None:
     assert [round(r.rpm) for r in recs] == [round(1000 / 2042.0 * 20416.66)]
     st = dec.stats
     assert st.bad_frame == 1 and st.skipped_bytes == 2 and st.bytes_in == 5
+
+
+# -- every decoder over real sentences interleaved with garbage, split anywhere ----------
+_CORPUS = Path(__file__).parent / "data" / "gpsd"
+_REAL_NMEA = [
+    ln + b"\r\n"
+    for p in sorted(_CORPUS.glob("*.log"))
+    for ln in p.read_bytes().splitlines()
+    if ln.startswith(b"$")
+][::7]
+_REAL_GPSD = [
+    ln + b"\n" for p in sorted(_CORPUS.glob("*.chk")) for ln in p.read_bytes().splitlines()
+][::11]
+_REAL = {
+    "nmea": (gps.NmeaDecoder, _REAL_NMEA),
+    "gpsd": (gpsd.GpsdDecoder, _REAL_GPSD),
+    "ahrs": (ahrs.AhrsDecoder, [AHRS_EULER]),
+    "keller": (keller.KellerDecoder, [KELLER_P1_1_5_BAR]),
+    "modem": (modem.ModemDecoder, [MODEM_ATRX, b"Response Not Received.\r\n"]),
+    "castle": (castle.CastleDecoder, [CASTLE_RAW_1000]),
+}
+
+
+def _feed_all(dec, stream: bytes, cuts: list[int]) -> list[object]:
+    out: list[object] = []
+    edges = [0, *sorted({c % (len(stream) + 1) for c in cuts}), len(stream)]
+    for a, b in itertools.pairwise(edges):
+        out += dec.feed(stream[a:b], 1.0)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(_REAL))
+@given(data=st.data())
+@settings(max_examples=120, deadline=None)
+def test_every_decoder_is_total_and_split_invariant_over_real_bytes(name: str, data) -> None:
+    make, real = _REAL[name]
+    parts = data.draw(
+        st.lists(st.one_of(st.sampled_from(real), st.binary(max_size=40)), max_size=25)
+    )
+    stream = b"".join(parts)
+    cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=12))
+    whole = make().feed(stream, 1.0)
+    assert _feed_all(make(), stream, cuts) == whole

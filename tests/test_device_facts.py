@@ -465,10 +465,18 @@ def test_gx3_hard_iron_is_read_from_eeprom(tmp_path: Path) -> None:
     emu = AhrsEmulator(tmp_path / "a")
     emu.hard_iron = (0.25, -0.5, 0.125)
     frames = _answers(emu, reads)
-    assert frames[0] == bytes.fromhex("e5 3e 80 01 a3")
+    assert frames[0] == bytes.fromhex("e5 00 00 00 e5")  # 0.25 is 3E80 0000: low word first
     words = [r for f in frames for r in dec.feed(f, 1.0)]
     assert [w.address for w in words] == [0x400 + 2 * i for i in range(6)]
     assert ahrs.hard_iron([w.value for w in words]) == (0.25, -0.5, 0.125)
+
+
+def test_gx3_hard_iron_word_order_is_dunes() -> None:
+    """The words DUNE's task writes for (12.5, -3.25, 0): 12.5 is 0x41480000, -3.25
+    0xC0500000, each float's low 16 bits at the lower address."""
+    words = [0x0000, 0x4148, 0x0000, 0xC050, 0x0000, 0x0000]
+    assert ahrs.hard_iron(words) == (12.5, -3.25, 0.0)
+    assert ahrs.hard_iron([0x1234, 0x3F80, 0, 0, 0, 0])[0] == pytest.approx(1.0, abs=1e-3)
 
 
 def test_gx3_soft_reset_stops_the_stream(tmp_path: Path) -> None:

@@ -110,9 +110,13 @@ def test_keller_initialised_and_polled(tmp_path: Path) -> None:
     asyncio.run(main())
 
 
-def test_gps_fix_and_no_fix(tmp_path: Path) -> None:
+@pytest.mark.parametrize("end", [b"\r\n", b"\n", b"\r"])
+def test_gps_fix_and_no_fix(tmp_path: Path, end: bytes) -> None:
+    """A receiver as real ones talk (a second talker, GSV, a vendor's sentence, any line
+    end): one fix per epoch, nothing lost to the chatter."""
+
     async def main() -> None:
-        emu = GpsEmulator(tmp_path / "gps", rate_hz=10.0)
+        emu = GpsEmulator(tmp_path / "gps", rate_hz=10.0, line_end=end)
         emu.start()
         got: list = []
         tr = SerialTransport(str(emu.path), 9600, gps.NmeaDecoder(), got.append)
@@ -125,6 +129,13 @@ def test_gps_fix_and_no_fix(tmp_path: Path) -> None:
         assert fix.lat == pytest.approx(-42.93, abs=1e-6)
         assert fix.lon == pytest.approx(147.36, abs=1e-6)
         assert fix.alt == pytest.approx(2.5)
+        await _until(lambda: sum(isinstance(r, Gps) and r.fix for r in got) >= 5)
+        fixes = [r for r in got if isinstance(r, Gps) and r.fix]
+        # one fix per epoch: the GL talker's GGA for the same epoch is not a second fix
+        assert tr.decoder.stats.reasons["duplicate_epoch"] >= len(fixes) - 1
+        assert tr.decoder.stats.reasons["proprietary_PGLOR"] >= 5
+        assert tr.decoder.stats.bad_frame == 0 and tr.decoder.stats.bad_checksum == 0
+        assert not tr.health.internal_errors
         await tr.stop()
         emu.close()
 

@@ -36,13 +36,12 @@ from navd.drivers.codec import DecodeStats
 from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
-from navd.records import Reset, SetBeacon
+from navd.records import MAX_BEACONS, Reset, SetBeacon
 from navd.schema import Health, to_dict
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
 STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is closed in time
-MAX_BEACONS = 16  # configured and commanded: bounds what a command can make navd keep
 D = TypeVar("D", bound=Device)
 
 
@@ -55,6 +54,13 @@ class _Logged:
 
     def feed(self, data: bytes, t: float) -> list[object]:
         self.rlog.raw_bytes(t, self.name, data)
+        return self.inner.feed(data, t)
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+    def refeed(self, data: bytes, t: float) -> list[object]:
+        """Bytes already logged, fed again after a decoder fault (not logged twice)."""
         return self.inner.feed(data, t)
 
 
@@ -174,7 +180,7 @@ class Daemon:
     def _start_devices(self) -> None:
         for dev in self.devices.values():
             dev.transport = SerialTransport(
-                dev.cfg.port,
+                dev.cfg.url,
                 dev.cfg.baudrate,
                 _Logged(dev.name, dev.decoder, self.rlog),
                 dev.handle,

@@ -22,7 +22,6 @@ import concurrent.futures
 import contextlib
 import json
 import math
-import re
 import threading
 import time
 from collections.abc import Callable
@@ -33,7 +32,7 @@ import zenoh
 
 from navd.config import ZenohConfig
 from navd.formats import jsonlines
-from navd.records import SetBeacon, implausible
+from navd.records import BEACON_NAME, SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION
 from navd.validation import Invalid, build, text
 
@@ -54,8 +53,6 @@ def zenoh_config(z: ZenohConfig) -> zenoh.Config:
 
 #: a command is a small JSON object; anything longer is refused before it is parsed
 MAX_COMMAND_BYTES = 4096
-#: beacon names: short, printable, safe in a log line and a zenoh key
-BEACON_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 #: commands accepted per second on average, and in a burst
 COMMAND_RATE_HZ = 2.0
 COMMAND_BURST = 5

@@ -42,7 +42,7 @@ CMD_CONTINUOUS = 0xC4
 CMD_SAMPLING = 0xDB
 CMD_FIRMWARE = 0xE9
 CMD_READ_EEPROM = 0xE5
-#: the hard-iron offsets: three big-endian float32 from this EEPROM address, in 6 words
+#: the hard-iron offsets: three float32 from this EEPROM address, in 6 words, low word first
 HARD_IRON_ADDR = 0x0400
 REFUSED = bytes([0x21, 0x00, 0x21])
 MIP_SYNC = bytes([0x75, 0x65])
@@ -95,8 +95,16 @@ def encode_read_eeprom(address: int) -> bytes:
 
 
 def hard_iron(words: list[int]) -> tuple[float, float, float]:
-    """The three hard-iron offsets from the six EEPROM words that hold them."""
-    raw = b"".join(w.to_bytes(2, "big") for w in words)
+    """The three hard-iron offsets from the six EEPROM words that hold them.
+
+    Each float32 is two words, its low 16 bits at the lower address: the order LSTS
+    DUNE's 3DM-GX3 task writes them in (``setHardIron``: ``val & 0xffff`` to
+    ``m_addr[2i]``, ``val >> 16`` to ``m_addr[2i+1]``) and reads them back
+    (``hard_iron[2i+1] << 16 | hard_iron[2i]``), on units in the field.
+    """
+    raw = b"".join(
+        words[i + 1].to_bytes(2, "big") + words[i].to_bytes(2, "big") for i in (0, 2, 4)
+    )
     x, y, z = struct.unpack(">fff", raw)
     return x, y, z
 

@@ -100,6 +100,9 @@ class CastleDecoder:
         regs = list(STATUS)
         return self.request(regs[(self._polls // STATUS_EVERY) % len(regs)])
 
+    def reset(self) -> None:
+        self._buf.clear()
+
     def feed(self, data: bytes, t: float) -> list[object]:
         self.stats.bytes_in += len(data)
         self._buf += data

@@ -9,6 +9,7 @@ completed by ``data`` with ``t``, the arrival time of those bytes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -76,6 +77,9 @@ class FrameDecoder:
         """The record a checked frame holds, or None (after counting why) if unusable."""
         raise NotImplementedError
 
+    def reset(self) -> None:
+        self._buf.clear()
+
     def feed(self, data: bytes, t: float) -> list[object]:
         self.stats.bytes_in += len(data)
         buf = self._buf
@@ -107,3 +111,32 @@ class Decoder(Protocol):
     stats: DecodeStats
 
     def feed(self, data: bytes, t: float) -> list[object]: ...
+
+    def reset(self) -> None:
+        """Forget any partial frame (the counters stay)."""
+
+
+def feed_guarded(
+    decoder: Decoder, data: bytes, t: float, on_error: Callable[[Exception], None]
+) -> list[object]:
+    """``decoder.feed`` that a decoder bug cannot make lose a read's other records.
+
+    Decoders never raise by contract; this is the defence in depth behind it.  If
+    ``feed`` raises, the partial frame is dropped and the same bytes are fed again
+    one at a time, skipping only where it raises again, so the records before and
+    after the fault are still delivered.
+    """
+    try:
+        return decoder.feed(data, t)
+    except Exception as exc:
+        on_error(exc)
+    decoder.reset()
+    refeed = getattr(decoder, "refeed", decoder.feed)  # a logging wrapper logs once
+    out: list[object] = []
+    for i in range(len(data)):
+        try:
+            out += refeed(data[i : i + 1], t)
+        except Exception as exc:
+            on_error(exc)
+            decoder.reset()
+    return out

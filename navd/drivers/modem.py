@@ -103,6 +103,10 @@ class ModemDecoder:
         self._buf = bytearray()
         self._range: ModemRange | None = None
 
+    def reset(self) -> None:
+        self._buf.clear()
+        self._range = None
+
     def feed(self, data: bytes, t: float) -> list[object]:
         self.stats.bytes_in += len(data)
         self._buf += data

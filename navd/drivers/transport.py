@@ -1,5 +1,7 @@
 """One asyncio serial transport for every device: pyserial underneath, the codec on top.
 
+A port is a device path or a pyserial URL (``socket://host:port`` for gpsd).
+
 The port is opened non-blocking and watched with the event loop's ``add_reader``;
 arriving bytes are stamped with ``time.monotonic()`` and fed to the device's
 decoder, whose records go to ``on_record``.  A port that vanishes (USB unplugged,
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 
 import serial
 
-from navd.drivers.codec import Decoder
+from navd.drivers.codec import Decoder, feed_guarded
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +92,9 @@ class SerialTransport:
             log.warning("%s: port lost (%s), reopening", self.port, self.health.last_error)
 
     def _open(self) -> None:
-        ser = serial.Serial(self.port, self.baudrate, timeout=0, write_timeout=0)
+        # a device path, or a URL such as socket://127.0.0.1:2947 (gpsd): pyserial's
+        # socket handler is read through the same non-blocking file descriptor
+        ser = serial.serial_for_url(self.port, self.baudrate, timeout=0, write_timeout=0)
         self._ser = ser
         self._lost = asyncio.Event()
         asyncio.get_running_loop().add_reader(ser.fileno(), self._readable)
@@ -128,11 +132,9 @@ class SerialTransport:
             return
         t = self.clock()
         self.health.last_rx = t
-        try:
-            records = self.decoder.feed(data, t)
-        except Exception as exc:  # a decoder bug: count it, lose this chunk, keep the port
-            self._internal_error("decoder", exc, t)
-            return
+        records = feed_guarded(
+            self.decoder, data, t, lambda exc: self._internal_error("decoder", exc, t)
+        )
         for rec in records:
             self.health.last_record = t
             try:

@@ -33,7 +33,7 @@ class BeaconResolver:
     """
 
     def __init__(self, beacons: dict[str, Beacon], gate: GateConfig) -> None:
-        self.beacons = beacons
+        self.beacons = dict(beacons)  # commands add to it: the config's own is not changed
         self.max_speed = gate.max_beacon_speed_mps
         self._last: dict[str, tuple[float, float, float]] = {}
         self._candidate: dict[str, tuple[float, float, float]] = {}

@@ -24,9 +24,17 @@ DEPTH_TRUST_S = 5.0
 RTK_STD_M = {4: 0.05, 5: 0.5}
 
 
-def fix_std(std_m: float, hdop: float | None, quality: int | None) -> float:
+def fix_std(
+    std_m: float, hdop: float | None, quality: int | None, sats: int | None = None,
+    unknown_hdop: float = 1.0,
+) -> float:
     """A fix's horizontal std: the configured std at HDOP 1, grown with HDOP (the
-    range error times the geometry's dilution); an RTK fix gets its own."""
+    range error times the geometry's dilution); an RTK fix gets its own.  A fix that
+    names no satellite and gives no HDOP (AIS transponders, some differential
+    outputs; ``sats`` 0) is taken as the poorest HDOP the filter accepts.  A record
+    that does not carry ``sats`` at all (a log of another writer) is not judged so."""
+    if hdop is None and sats == 0:
+        hdop = unknown_hdop
     std = std_m * max(1.0, hdop or 1.0)
     if quality in RTK_STD_M:
         std = min(std, RTK_STD_M[quality] * max(1.0, hdop or 1.0))
@@ -58,6 +66,15 @@ class GpsFixes:
             return self.site.surface_altitude_m
         return self._alt_sum / self._alt_n if self._alt_n else 0.0
 
+    def ellipsoidal_height(self, rec: Gps) -> float | None:
+        """The fix's height above the ellipsoid: the receiver's, else its MSL height
+        and the site's geoid separation; None rather than an MSL height taken for it."""
+        if rec.alt is not None:
+            return rec.alt
+        if rec.alt_msl is not None and self.site.geoid_separation_m is not None:
+            return rec.alt_msl + self.site.geoid_separation_m
+        return None
+
     def judge(
         self, rec: Gps, at_surface: bool, t_depth: float
     ) -> tuple[float | None, list[str]]:
@@ -74,11 +91,14 @@ class GpsFixes:
         if self.t_last is None or rec.t - self.t_last > NEW_STREAK_S:
             self.t_streak = rec.t
         self.t_last = rec.t
-        if rec.alt is not None:
-            self._alt_sum += rec.alt
+        alt = self.ellipsoidal_height(rec)
+        if alt is not None:
+            self._alt_sum += alt
             self._alt_n += 1
         warm = rec.t - self.t_streak < self.nav.gps.warmup_s
-        std = fix_std(self.nav.noise.gps_std_m, rec.hdop, rec.quality)
+        std = fix_std(
+            self.nav.noise.gps_std_m, rec.hdop, rec.quality, rec.sats, self.nav.gps.max_hdop
+        )
         if warm and rec.quality not in RTK_STD_M:
             std = max(std, self.nav.gps.warmup_std_m)
         return std, said

@@ -40,6 +40,8 @@ from navd.filter.thesis import ThesisEKF
 from navd.filter.vlbl import NetRange, VirtualNet
 from navd.filter.vlblmode import VlblMode
 from navd.records import (
+    BEACON_NAME,
+    MAX_BEACONS,
     MAX_LATE_S,
     Attitude,
     Depth,
@@ -182,12 +184,24 @@ class Navigator:
         Only the position changes: the configured turnaround time and position error
         of that beacon still hold.
         """
-        known = self.beacons.beacons.get(rec.beacon, Beacon())
-        fixed = replace(known, lat=rec.lat, lon=rec.lon, depth=rec.depth)
-        self.beacons.beacons = {**self.beacons.beacons, rec.beacon: fixed}
+        table = self.beacons.beacons
+        if not BEACON_NAME.fullmatch(rec.beacon):
+            self.counters["beacon_commands_refused_name"] += 1
+            return
+        if rec.beacon not in table and len(table) >= MAX_BEACONS:
+            # the daemon refuses the command; a log of other origin gets the same limit
+            self.counters["beacon_commands_refused_limit"] += 1
+            return
+        known = table.get(rec.beacon, Beacon())
+        table[rec.beacon] = replace(known, lat=rec.lat, lon=rec.lon, depth=rec.depth)
 
     def advance(self, t: float) -> list[dict[str, Any]]:
-        """Run the ticks up to and including ``t`` (the daemon's clock, or the end of a log)."""
+        """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,
+        or the end of a log)."""
+        if self._t_filter is not None and t - self._t_filter > self.nav.max_gap_s:
+            # as for a record after a gap: a tick far ahead is no reason to step the
+            # filter through every 0.1 s of it
+            self.restart("after_gap")
         return self._ticks_until(t, inclusive=True)
 
     def smoothed(self) -> list[dict[str, Any]]:

@@ -14,8 +14,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO, Any
 
+from navd import files
 from navd.formats import jsonlines
 from navd.records import (
+    MAX_ABS_T,
     MAX_LATE_S,
     TYPE_NAMES,
     Attitude,
@@ -38,8 +40,11 @@ FORMAT = "navd-measurements"
 #: what the daemon's own log holds besides measurements; replay passes over them
 LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "advisory", "event"})
 VERSION = 1
-#: a longer step forward between two records is checked against the record after it
-JUMP_S = 60.0
+#: a longer step forward is held until the lines after it confirm it (``_TimeRules``):
+#: records come at 10 Hz and more, so a few seconds of silence is already a gap
+JUMP_S = 5.0
+#: records after a jump that, following it, make it the new clock
+CONFIRM_LINES = 8
 #: no record is anywhere near this long; a longer line is skipped without parsing it
 MAX_LINE_CHARS = 65536
 
@@ -106,9 +111,15 @@ def _parse_gps(o: dict, t: float) -> Gps:
         isinstance(quality, bool) or not isinstance(quality, int) or not 0 <= quality <= 9
     ):
         raise _Bad("field 'quality' must be an integer 0 to 9")
+    sats = o.get("sats")
+    if sats is not None and (isinstance(sats, bool) or not isinstance(sats, int)):
+        raise _Bad("field 'sats' must be an integer")
     if fix == 0:
-        return Gps(t, None, None, None, 0, hdop, quality)
-    return Gps(t, _num(o, "lat"), _num(o, "lon"), _opt(o, "alt"), fix, hdop, quality)
+        return Gps(t, None, None, None, 0, hdop, quality, sats=sats)
+    return Gps(
+        t, _num(o, "lat"), _num(o, "lon"), _opt(o, "alt"), fix, hdop, quality,
+        _opt(o, "alt_msl"), _opt(o, "geoid_sep"), sats,
+    )
 
 
 def _parse_range(o: dict, t: float) -> Range:
@@ -180,20 +191,76 @@ def _check_header(obj: Any) -> dict[str, Any]:
     return obj
 
 
-def iter_lines(
-    lines: Iterable[str], strict: bool = False
-) -> Iterator[tuple[int, Record | Skipped]]:
-    """Records (or skips) from the lines after the header, numbered from 2.
+class _TimeRules:
+    """Replay's time rules, one place for every line alike (measurements and ticks).
 
     Time must not go back, except for a range completed up to ``MAX_LATE_S`` after
     the records behind its first byte (the daemon logs it when complete).  A record
-    more than ``JUMP_S`` ahead of the one before is held until the next one shows
-    whether time really moved on (a gap in the log) or that record is corrupt; a
-    corrupt one is skipped, not made the new clock that every later line would
-    then go back from.
+    more than ``JUMP_S`` ahead of the clock is held, with the records after it, until
+    ``CONFIRM_LINES`` of them follow it (time really moved on: a gap in the log) or
+    one does not (they are out of line, dropped and counted; the clock stays).  The
+    end of the log confirms what is held.  So one corrupt time, or a few in a row,
+    costs its own lines and never becomes the clock every later line goes back from.
     """
-    last_t = -math.inf
-    held: tuple[int, Record] | None = None
+
+    def __init__(self, strict: bool) -> None:
+        self.strict = strict
+        self.last_t = -math.inf
+        self.held: list[tuple[int, Record]] = []
+        self.held_max = -math.inf
+
+    def _skip(self, no: int, why: str) -> tuple[int, Skipped]:
+        if self.strict:
+            raise LogError(f"line {no}: {why}")
+        return no, Skipped(no, why)
+
+    def offer(self, no: int, rec: Record) -> list[tuple[int, Record | Skipped]]:
+        late_ok = MAX_LATE_S if isinstance(rec, Range | TravelTime) else 0.0
+        out: list[tuple[int, Record | Skipped]] = []
+        if self.held:
+            if rec.t >= self.held_max - late_ok:
+                self.held.append((no, rec))
+                self.held_max = max(self.held_max, rec.t)
+                if len(self.held) > CONFIRM_LINES:
+                    out += self._release()
+                return out
+            for h_no, h_rec in self.held:
+                out.append(
+                    self._skip(
+                        h_no,
+                        f"t={h_rec.t:g} is far out of line (after {self.last_t:g}, "
+                        f"and line {no} goes on from t={rec.t:g})",
+                    )
+                )
+            self.held, self.held_max = [], -math.inf
+        if rec.t < self.last_t - late_ok:
+            out.append(self._skip(no, f"t={rec.t:g} goes back in time (previous {self.last_t:g})"))
+        elif math.isfinite(self.last_t) and rec.t - self.last_t > JUMP_S:
+            self.held, self.held_max = [(no, rec)], rec.t
+        else:
+            self.last_t = max(self.last_t, rec.t)
+            out.append((no, rec))
+        return out
+
+    def _release(self) -> list[tuple[int, Record | Skipped]]:
+        out: list[tuple[int, Record | Skipped]] = list(self.held)
+        self.last_t = self.held_max
+        self.held, self.held_max = [], -math.inf
+        return out
+
+    def finish(self) -> list[tuple[int, Record | Skipped]]:
+        return self._release() if self.held else []
+
+
+def iter_lines(
+    lines: Iterable[str | bytes], strict: bool = False
+) -> Iterator[tuple[int, Record | Skipped]]:
+    """Records (or skips) from the lines after the header, numbered from 2.
+
+    Each line is decoded on its own (invalid UTF-8 costs that line) and put through
+    :class:`_TimeRules`; an ``estimate`` line of a daemon log is a :class:`Tick`.
+    """
+    rules = _TimeRules(strict)
     for no, raw in enumerate(lines, start=2):
         if len(raw) > MAX_LINE_CHARS:
             reason = f"line longer than {MAX_LINE_CHARS} characters"
@@ -201,52 +268,42 @@ def iter_lines(
                 raise LogError(f"line {no}: {reason}")
             yield no, Skipped(no, reason)
             continue
-        line = raw.strip()
-        if not line:
-            continue
         try:
+            if isinstance(raw, bytes):
+                try:
+                    raw = raw.decode("utf-8")
+                except UnicodeDecodeError:
+                    raise ValueError("invalid UTF-8") from None
+            line = raw.strip()
+            if not line:
+                continue
             try:
                 obj = jsonlines.loads(line)
             except jsonlines.DecodeError as exc:
                 raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
+            rec: Record
             if isinstance(obj, dict) and obj.get("type") == "estimate":
                 t_tick = obj.get("t")
-                if isinstance(t_tick, float | int) and math.isfinite(t_tick):
-                    yield no, Tick(float(t_tick))  # where the daemon stepped its filter
+                if isinstance(t_tick, bool) or not isinstance(t_tick, float | int):
+                    continue
+                if not (math.isfinite(t_tick) and abs(t_tick) <= MAX_ABS_T):
+                    raise ValueError(f"estimate line with an impossible time {t_tick!r:.20}")
+                rec = Tick(float(t_tick))  # where the daemon stepped its filter
+            elif isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
                 continue
-            if isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
-                continue
-            rec = parse_record(obj)
-            if held is not None:
-                h_no, h_rec = held
-                held = None
-                if rec.t >= h_rec.t - MAX_LATE_S:
-                    last_t = h_rec.t
-                    yield h_no, h_rec
-                else:
-                    why = f"t={h_rec.t:g} is far out of line (before {last_t:g}, after {rec.t:g})"
-                    if strict:
-                        raise LogError(f"line {h_no}: {why}")
-                    yield h_no, Skipped(h_no, why)
-            late_ok = MAX_LATE_S if isinstance(rec, Range | TravelTime) else 0.0
-            if rec.t < last_t - late_ok:
-                raise ValueError(f"t={rec.t:g} goes back in time (previous {last_t:g})")
+            else:
+                rec = parse_record(obj)
         except ValueError as exc:
             if strict:
                 raise LogError(f"line {no}: {exc}") from None
             yield no, Skipped(no, str(exc))
             continue
-        if math.isfinite(last_t) and rec.t - last_t > JUMP_S:
-            held = (no, rec)
-            continue
-        last_t = max(last_t, rec.t)
-        yield no, rec
-    if held is not None:
-        yield held
+        yield from rules.offer(no, rec)
+    yield from rules.finish()
 
 
-def _bounded_lines(fh: IO[str]) -> Iterator[str]:
-    """The file's lines, none held longer than ``MAX_LINE_CHARS + 1`` characters.
+def _bounded_lines(fh: IO[bytes]) -> Iterator[bytes]:
+    """The file's lines, none held longer than ``MAX_LINE_CHARS + 1`` bytes.
 
     A longer line is cut there (so the reader skips it) and the rest of it is read
     past in bounded pieces: one corrupt line must not cost the memory of its length.
@@ -255,10 +312,10 @@ def _bounded_lines(fh: IO[str]) -> Iterator[str]:
         line = fh.readline(MAX_LINE_CHARS + 1)
         if not line:
             return
-        if len(line) > MAX_LINE_CHARS and not line.endswith("\n"):
+        if len(line) > MAX_LINE_CHARS and not line.endswith(b"\n"):
             while True:
                 rest = fh.readline(MAX_LINE_CHARS)
-                if not rest or rest.endswith("\n"):
+                if not rest or rest.endswith(b"\n"):
                     break
         yield line
 
@@ -266,9 +323,9 @@ def _bounded_lines(fh: IO[str]) -> Iterator[str]:
 def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementLog:
     p = Path(path)
     try:
-        fh = p.open("r", encoding="utf-8", errors="strict")
-    except OSError as exc:
-        raise LogError(f"{p}: cannot open ({exc.strerror or exc})") from None
+        fh = files.open_regular(p)
+    except files.FileRefused as exc:
+        raise LogError(str(exc)) from None
     try:
         with fh:
             first = fh.readline(MAX_LINE_CHARS)
@@ -285,8 +342,8 @@ def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementL
                     skipped.append(item)
                 else:
                     records.append(item)
-    except UnicodeDecodeError as exc:
-        raise LogError(f"{p}: not UTF-8 text ({exc.reason})") from None
+    except OSError as exc:
+        raise LogError(f"{p}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
     except LogError as exc:
         msg = str(exc)
         raise LogError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None

@@ -27,6 +27,7 @@ from typing import Any, Literal
 
 import yaml
 
+from navd import files
 from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.formats import jsonlines
 from navd.hil.emulators.ahrs import AhrsEmulator
@@ -273,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = p.parse_args(argv)
     try:
-        faults = check_faults(yaml.safe_load(Path(args.faults).read_text())) if args.faults else []
+        faults = check_faults(files.load_yaml(args.faults)) if args.faults else []
         bench = Bench(
             args.scenario,
             args.seed,
@@ -283,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
             args.vehicle,
             args.zenoh_connect,
         )
-    except (ConfigError, OSError, yaml.YAMLError) as exc:
+    except (ConfigError, OSError, files.FileRefused) as exc:
         print(f"navd-hil: {exc}", file=sys.stderr)
         return 2
 

@@ -13,8 +13,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from navd import files
 from navd.config import ConfigError, build
 
 
@@ -158,11 +157,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
                 f"no scenario named {str(name_or_path)!r}; there are: {', '.join(list_scenarios())}"
             )
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read scenario ({exc.strerror or exc})") from None
-    except yaml.YAMLError:
-        raise ConfigError(f"{p}: invalid YAML") from None
+        data = files.load_yaml(p)
+    except files.FileRefused as exc:
+        raise ConfigError(str(exc)) from None
     try:
         return scenario_from_dict(data)
     except ConfigError as exc:

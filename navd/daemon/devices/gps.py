@@ -1,12 +1,14 @@
-"""The NMEA GPS receiver: fixes to the filter, its UTC to health."""
+"""The GPS receiver, on its serial port (NMEA) or through gpsd (JSON): fixes to the
+filter, its UTC to health."""
 
 from __future__ import annotations
 
 import datetime as dt
 
-from navd.config import SerialPortConfig
+from navd.config import GpsDevice
 from navd.daemon.devices.base import Device, Host
-from navd.drivers import gps
+from navd.drivers import gps, gpsd
+from navd.drivers.transport import SerialTransport
 from navd.records import Gps
 
 NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
@@ -16,9 +18,15 @@ class GpsReceiver(Device):
     name = "gps"
     expected_rate_hz = NMEA_MAX_HZ
 
-    def __init__(self, cfg: SerialPortConfig, host: Host) -> None:
-        super().__init__(cfg, host, gps.NmeaDecoder())
-        self.utc: dt.datetime | None = None  # the receiver's last UTC (RMC)
+    def __init__(self, cfg: GpsDevice, host: Host) -> None:
+        decoder = gpsd.GpsdDecoder() if cfg.source == "gpsd" else gps.NmeaDecoder()
+        super().__init__(cfg, host, decoder)
+        self.gpsd = cfg.source == "gpsd"
+        self.utc: dt.datetime | None = None  # the receiver's last UTC (RMC, or gpsd's TPV)
+
+    def on_open(self, tr: SerialTransport) -> None:
+        if self.gpsd:
+            tr.write(gpsd.WATCH)  # on every connect: gpsd forgets a watch with its client
 
     def on_record(self, rec: object) -> None:
         if isinstance(rec, Gps):

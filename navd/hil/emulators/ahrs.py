@@ -118,11 +118,11 @@ class AhrsEmulator(Emulator):
 
     def _eeprom(self, address: int) -> int:
         base = 0x0400
-        raw = struct.pack(">fff", *self.hard_iron)
         i = address - base
-        if 0 <= i < len(raw) and i % 2 == 0:
-            return int.from_bytes(raw[i : i + 2], "big")
-        return 0
+        if not (0 <= i < 12 and i % 2 == 0):
+            return 0
+        bits = int.from_bytes(struct.pack(">f", self.hard_iron[i // 4]), "big")
+        return bits & 0xFFFF if i % 4 == 0 else bits >> 16  # the low word first
 
     @property
     def rate_hz(self) -> float:
