@@ -9,6 +9,7 @@ fatal (:class:`LogError`).
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -17,6 +18,7 @@ from typing import IO, Any
 from navd import files
 from navd.formats import jsonlines
 from navd.records import (
+    BEACON_NAME,
     MAX_ABS_T,
     MAX_LATE_S,
     TYPE_NAMES,
@@ -40,11 +42,9 @@ FORMAT = "navd-measurements"
 #: what the daemon's own log holds besides measurements; replay passes over them
 LOG_ONLY_TYPES = frozenset({"raw", "estimate", "decision", "health", "advisory", "event"})
 VERSION = 1
-#: a longer step forward is held until the lines after it confirm it (``_TimeRules``):
-#: records come at 10 Hz and more, so a few seconds of silence is already a gap
-JUMP_S = 5.0
-#: records after a jump that, following it, make it the new clock
-CONFIRM_LINES = 8
+#: lines each record waits for before replay takes it (``_TimeRules``): the lines that
+#: outvote a corrupt time
+HOLD_LINES = 16
 #: no record is anywhere near this long; a longer line is skipped without parsing it
 MAX_LINE_CHARS = 65536
 
@@ -95,6 +95,13 @@ def _str(obj: dict, key: str) -> str:
     if not isinstance(v, str) or not v:
         raise _Bad(f"field '{key}' must be a non-empty string")
     return v
+
+
+def _beacon_name(obj: dict) -> str:
+    name = _str(obj, "beacon")
+    if not BEACON_NAME.fullmatch(name):
+        raise _Bad("field 'beacon': 1 to 32 letters, digits, '_', '.' or '-' (as the command)")
+    return name
 
 
 def _beacon_fields(obj: dict) -> tuple[float | None, float | None, float | None]:
@@ -155,7 +162,7 @@ _PARSERS: dict[str, Callable[[dict, float], Record]] = {
     "cmd_reset": lambda o, t: Reset(t),
     "cmd_beacon": lambda o, t: SetBeacon(
         t,
-        _str(o, "beacon"),
+        _beacon_name(o),
         _num(o, "lat"),
         _num(o, "lon"),
         _opt(o, "depth") or 0.0,
@@ -191,23 +198,36 @@ def _check_header(obj: Any) -> dict[str, Any]:
     return obj
 
 
+def _late_ok(rec: Record) -> float:
+    """How far a record may lie behind the records logged before it.
+
+    A tick is logged when the loop gets to it, after the records that arrived since
+    its deadline; one behind the clock steps nothing, so any lateness is harmless."""
+    if isinstance(rec, Range | TravelTime):
+        return MAX_LATE_S
+    return math.inf if isinstance(rec, Tick) else 0.0
+
+
 class _TimeRules:
     """Replay's time rules, one place for every line alike (measurements and ticks).
 
     Time must not go back, except for a range completed up to ``MAX_LATE_S`` after
-    the records behind its first byte (the daemon logs it when complete).  A record
-    more than ``JUMP_S`` ahead of the clock is held, with the records after it, until
-    ``CONFIRM_LINES`` of them follow it (time really moved on: a gap in the log) or
-    one does not (they are out of line, dropped and counted; the clock stays).  The
-    end of the log confirms what is held.  So one corrupt time, or a few in a row,
-    costs its own lines and never becomes the clock every later line goes back from.
+    the records behind its first byte (the daemon logs it when complete).  Every
+    record waits in a window of ``HOLD_LINES`` lines before it is given on.  While
+    the window's times are in order that is all.  When they are not, a record leaves
+    the window only if it belongs to the longest run of the window's records whose
+    times are in order (and after what was given on): a corrupt time, ahead or
+    behind, or a few of them in a row, is outvoted by the lines around it, dropped
+    and counted, and never becomes the clock every later line would go back from.
+    A real gap in the log is in order, and costs nothing.
     """
 
     def __init__(self, strict: bool) -> None:
         self.strict = strict
-        self.last_t = -math.inf
-        self.held: list[tuple[int, Record]] = []
-        self.held_max = -math.inf
+        self.window: deque[tuple[int, Record]] = deque()
+        self.last_t = -math.inf  # the time of what was given on
+        self.run_max = -math.inf  # the latest time in the window, while it is in order
+        self.conflicted = False
 
     def _skip(self, no: int, why: str) -> tuple[int, Skipped]:
         if self.strict:
@@ -215,41 +235,67 @@ class _TimeRules:
         return no, Skipped(no, why)
 
     def offer(self, no: int, rec: Record) -> list[tuple[int, Record | Skipped]]:
-        late_ok = MAX_LATE_S if isinstance(rec, Range | TravelTime) else 0.0
+        late = _late_ok(rec)
+        if rec.t < self.last_t - late:
+            return [self._skip(no, f"t={rec.t:g} goes back in time (previous {self.last_t:g})")]
+        self.window.append((no, rec))
+        if rec.t < self.run_max - late:
+            self.conflicted = True
+        elif rec.t > self.run_max:
+            self.run_max = rec.t
         out: list[tuple[int, Record | Skipped]] = []
-        if self.held:
-            if rec.t >= self.held_max - late_ok:
-                self.held.append((no, rec))
-                self.held_max = max(self.held_max, rec.t)
-                if len(self.held) > CONFIRM_LINES:
-                    out += self._release()
-                return out
-            for h_no, h_rec in self.held:
-                out.append(
-                    self._skip(
-                        h_no,
-                        f"t={h_rec.t:g} is far out of line (after {self.last_t:g}, "
-                        f"and line {no} goes on from t={rec.t:g})",
-                    )
-                )
-            self.held, self.held_max = [], -math.inf
-        if rec.t < self.last_t - late_ok:
-            out.append(self._skip(no, f"t={rec.t:g} goes back in time (previous {self.last_t:g})"))
-        elif math.isfinite(self.last_t) and rec.t - self.last_t > JUMP_S:
-            self.held, self.held_max = [(no, rec)], rec.t
-        else:
-            self.last_t = max(self.last_t, rec.t)
-            out.append((no, rec))
-        return out
-
-    def _release(self) -> list[tuple[int, Record | Skipped]]:
-        out: list[tuple[int, Record | Skipped]] = list(self.held)
-        self.last_t = self.held_max
-        self.held, self.held_max = [], -math.inf
+        while len(self.window) > HOLD_LINES:
+            out.append(self._leave())
         return out
 
     def finish(self) -> list[tuple[int, Record | Skipped]]:
-        return self._release() if self.held else []
+        return [self._leave() for _ in range(len(self.window))]
+
+    def _leave(self) -> tuple[int, Record | Skipped]:
+        """The oldest record of the window, given on or dropped."""
+        no, rec = self.window[0]
+        keep = not self.conflicted or self._oldest_in_longest_run()
+        self.window.popleft()
+        if keep:
+            self.last_t = max(self.last_t, rec.t)
+        if self.conflicted:
+            self._recheck()
+        if keep:
+            return no, rec
+        if rec.t < self.last_t - _late_ok(rec):
+            return self._skip(no, f"t={rec.t:g} goes back in time (previous {self.last_t:g})")
+        return self._skip(no, f"t={rec.t:g} is far out of line with the lines around it")
+
+    def _recheck(self) -> None:
+        run = self.last_t
+        for _, r in self.window:
+            if r.t < run - _late_ok(r):
+                return
+            run = max(run, r.t)
+        self.conflicted, self.run_max = False, run
+
+    def _oldest_in_longest_run(self) -> bool:
+        """Whether a longest in-order run of the window (a subsequence, each time at or
+        after the latest before it, less its lateness) can start with the oldest record."""
+        items = [r for _, r in self.window]
+        n = len(items)
+        best = [0] * n  # longest run ending at j, over any start
+        top = [0.0] * n  # the latest time in that run
+        best0 = [0] * n  # the same, for runs that start with the oldest
+        top0 = [0.0] * n
+        for j, r in enumerate(items):
+            late = _late_ok(r)
+            if r.t < self.last_t - late:
+                continue  # behind what was given on: in no run
+            best[j], top[j] = 1, r.t
+            if j == 0:
+                best0[0], top0[0] = 1, r.t
+            for i in range(j):
+                if best[i] and r.t >= top[i] - late and best[i] + 1 > best[j]:
+                    best[j], top[j] = best[i] + 1, max(top[i], r.t)
+                if best0[i] and r.t >= top0[i] - late and best0[i] + 1 > best0[j]:
+                    best0[j], top0[j] = best0[i] + 1, max(top0[i], r.t)
+        return max(best0) >= max(best) > 0
 
 
 def iter_lines(
