@@ -97,6 +97,9 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     cfg = _config(args, "file")
     if not args.offline:
         check_for_run(cfg)  # exactly what navd run refuses
+        from navd.daemon.publish import zenoh_config
+
+        zenoh_config(cfg.zenoh)  # the zenoh file opened and parsed as navd run will
     nav = cfg.navigation
     print(f"{' + '.join([args.file, *(args.site or [])])}: ok")
     print(
@@ -119,7 +122,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from navd.config import check_for_run, default_config_path
     from navd.daemon.daemon import Daemon
-    from navd.daemon.publish import Publisher
+    from navd.daemon.publish import Publisher, zenoh_config
 
     try:
         args.config = args.config or default_config_path(os.environ)
@@ -127,6 +130,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise ConfigError("--config: required (outside systemd's ConfigurationDirectory)")
         cfg = _config(args)
         check_for_run(cfg)
+        zenoh_config(cfg.zenoh)  # a file zenoh cannot use is a config error, said now
     except ConfigError as exc:
         print(f"navd: {exc}", file=sys.stderr)
         return EX_CONFIG

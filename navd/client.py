@@ -39,12 +39,15 @@ class Answer:
 
 
 def open_session(connect: list[str] | None = None, config: zenoh.Config | None = None):
-    """A zenoh peer that connects to ``connect`` (the daemon, or a router) and listens
-    nowhere, with multicast scouting off: it finds what it is told to find."""
+    """A zenoh client of ``connect`` (the daemon, or a router), with scouting off.
+
+    A client talks only to what it connects to: everything it receives on navd's keys
+    has passed the access control of navd's session (or the router's).  A peer would
+    also connect to any peer that gossip told it of, and take what that one put."""
     cfg = config or zenoh.Config()
-    cfg.insert_json5("mode", '"peer"')
-    cfg.insert_json5("listen/endpoints", "[]")
+    cfg.insert_json5("mode", '"client"')
     cfg.insert_json5("scouting/multicast/enabled", "false")
+    cfg.insert_json5("scouting/gossip/enabled", "false")
     if connect:
         cfg.insert_json5("connect/endpoints", jsonlines.dumps(list(connect)).decode())
     return zenoh.open(cfg)

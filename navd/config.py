@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from navd import files, validation
+from navd import endpoints, files, validation
 from navd.acoustics import SoundSpeed
 from navd.validation import Invalid
 from navd.validation import number as _num
@@ -236,6 +236,10 @@ class ZenohConfig:
     connect: list[str] = field(default_factory=list)
     config_file: str | None = None  # a zenoh JSON5 file; the keys above then override it
     multicast_scouting: bool = False
+    # listen endpoints are loopback only, unless these say otherwise: an address of a
+    # network of the vehicle (an autopilot on another computer), or every interface
+    listen_beyond_loopback: bool = False
+    listen_on_every_interface: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -312,10 +316,17 @@ def build(cls: type, data: Any, path: str = "") -> Any:
 def config_from_dict(data: Any) -> Config:
     """Validate a parsed YAML document into a :class:`Config`."""
     cfg: Config = build(Config, data, "")
-    for i, ep in enumerate(cfg.zenoh.listen):
-        if "0.0.0.0" in ep or "[::]" in ep:
-            # commands reach the vehicle through this: it listens on a named network only
-            _fail(f"zenoh.listen[{i}]", f"{ep} listens on every interface; give an address")
+    z = cfg.zenoh
+    for i, ep in enumerate(z.listen):
+        # commands reach the vehicle through this: loopback, unless the config says more
+        why = endpoints.listen_problem(ep, z.listen_beyond_loopback, z.listen_on_every_interface)
+        if why is not None:
+            _fail(f"zenoh.listen[{i}]", why)
+    for i, ep in enumerate(z.connect):
+        try:
+            endpoints.parse(ep)
+        except ValueError as exc:
+            _fail(f"zenoh.connect[{i}]", str(exc))
     n = len(cfg.navigation.compass_deviation_deg)
     if n not in (0, 5):
         _fail(

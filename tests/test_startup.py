@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from navd.config import ConfigError, config_from_dict, load_config
 from navd.daemon.daemon import Daemon
@@ -144,3 +145,91 @@ def test_the_log_directory_is_kept_under_its_limit(tmp_path: Path) -> None:
     total = sum(f.stat().st_size for f in tmp_path.glob("*.jsonl"))
     assert total <= 0.05 * 1024 * 1024 + 0.011 * 1024 * 1024  # the limit, plus the open file
     assert log.removed_files > 0
+
+
+@pytest.mark.parametrize(
+    "endpoint",
+    [
+        "tcp/0:7612",
+        "tcp/[0:0:0:0:0:0:0:0]:7612",
+        "tcp/[::ffff:0.0.0.0]:7612",
+        "udp/0x0:7612",
+        "tcp/192.168.2.10:7447",
+        "tcp/example.com:7447",
+    ],
+)
+def test_listen_endpoints_are_parsed_not_matched(endpoint: str) -> None:
+    """Spellings of "every interface" (and addresses off the vehicle) that a text match let by."""
+    with pytest.raises(ConfigError, match=r"zenoh\.listen\[0\]"):
+        config_from_dict({"zenoh": {"listen": [endpoint]}})
+
+
+def test_an_address_beyond_loopback_is_allowed_when_the_config_says_so() -> None:
+    z = {"listen": ["tcp/192.168.2.10:7447"], "listen_beyond_loopback": True}
+    assert config_from_dict({"zenoh": z}).zenoh.listen == ["tcp/192.168.2.10:7447"]
+    with pytest.raises(ConfigError, match="every interface"):
+        config_from_dict({"zenoh": {**z, "listen": ["tcp/0:7447"]}})
+
+
+@pytest.mark.parametrize("target", ["missing.json5", ".", "/dev/zero", "not-json5"])
+def test_check_config_opens_the_zenoh_file_as_navd_run_will(tmp_path: Path, target: str) -> None:
+    import subprocess
+    import sys
+
+    (tmp_path / "not-json5").write_text("{ mode: peer, ")
+    path = target if target.startswith("/") else str(tmp_path / target)
+    cfg = tmp_path / "navd.yaml"
+    ports = {n: {"port": f"/dev/navd-{n}"} for n in ("ahrs", "gps", "pressure", "motor", "modem")}
+    cfg.write_text(yaml.safe_dump({"zenoh": {"config_file": path}, "devices": ports}))
+    for cmd, code in ((["check-config"], 2), (["run", "--config"], 78)):
+        t0 = time.perf_counter()
+        r = subprocess.run(
+            [sys.executable, "-m", "navd", *cmd, str(cfg)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert time.perf_counter() - t0 < 30
+        assert r.returncode == code, r.stderr
+        assert "zenoh.config_file" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+        assert "Traceback" not in r.stderr
+
+
+def test_the_daemon_navigates_while_zenoh_takes_long_to_open(tmp_path: Path) -> None:
+    """zenoh.open blocked for seconds (a router that does not answer): in its thread."""
+
+    class Pub:
+        errors = 0
+        commands: dict = {}
+
+        def put(self, kind: str, body: dict) -> bytes:
+            return b""
+
+        def close(self) -> None:
+            pass
+
+    def factory(loop: asyncio.AbstractEventLoop, on_command: object) -> Pub:
+        time.sleep(2.0)  # blocking, as zenoh.open is
+        return Pub()
+
+    cfg = config_from_dict(
+        {
+            "log": {"dir": str(tmp_path / "log")},
+            "devices": {
+                n: {"enabled": False} for n in ("ahrs", "gps", "pressure", "motor", "modem")
+            },
+        }
+    )
+
+    async def main() -> None:
+        d = Daemon(cfg, publisher_factory=factory)
+        stop = asyncio.Event()
+        task = asyncio.get_running_loop().create_task(d.run(stop))
+        await asyncio.sleep(1.5)
+        assert d.pub is None and d.ticks >= 10  # 10 Hz while zenoh opens
+        await asyncio.sleep(1.5)
+        assert d.pub is not None
+        stop.set()
+        await task
+
+    asyncio.run(main())

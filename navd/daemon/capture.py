@@ -13,8 +13,9 @@ import asyncio
 import dataclasses
 from pathlib import Path
 
+from navd import files
 from navd.config import Config, ConfigError
-from navd.formats.jsonlines import DecodeError, loads
+from navd.formats.jsonlines import loads
 
 DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
 
@@ -57,12 +58,14 @@ def capture(cfg: Config, device: str, seconds: float, out_dir: str | Path) -> Pa
 def raw_frames(path: str | Path, device: str) -> list[tuple[float, bytes]]:
     """The bytes ``device`` delivered, with their arrival times, from a daemon log."""
     out = []
-    with Path(path).open(encoding="utf-8") as fh:
+    with files.open_regular(path) as fh:
         for line in fh:
             try:
                 obj = loads(line)
-            except DecodeError:
-                continue  # a line cut by a kill: the rest still counts
-            if isinstance(obj, dict) and obj.get("type") == "raw" and obj.get("device") == device:
-                out.append((float(obj["t"]), bytes.fromhex(obj["hex"])))
+                if not (isinstance(obj, dict) and obj.get("type") == "raw"):
+                    continue
+                if obj.get("device") == device:
+                    out.append((float(obj["t"]), bytes.fromhex(obj["hex"])))
+            except (KeyError, TypeError, ValueError, RecursionError):  # orjson's errors too
+                continue  # a line cut by a kill, or corrupt: the rest still counts
     return out

@@ -41,6 +41,7 @@ from navd.schema import Health, to_dict
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
+ZENOH_OPEN_WARN_S = 5.0  # a session not open by then is said in health (it goes on trying)
 STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is closed in time
 D = TypeVar("D", bound=Device)
 
@@ -237,11 +238,20 @@ class Daemon:
         delay = 1.0
         while self.pub is None:
             try:
-                self.pub = self.publisher_factory(loop, self.on_command)
+                # zenoh.open blocks (name resolution, a slow file, a router that does not
+                # answer): in a thread, so that navigation never waits for it
+                opening = asyncio.ensure_future(
+                    asyncio.to_thread(self.publisher_factory, loop, self.on_command)
+                )
+                while not opening.done():
+                    await asyncio.wait({opening}, timeout=ZENOH_OPEN_WARN_S)
+                    if not opening.done():
+                        self.zenoh_error = f"still opening after {ZENOH_OPEN_WARN_S:g} s"
+                self.pub = opening.result()
                 self.zenoh_error = ""
                 log.info("zenoh session open")
             except Exception as exc:  # zenoh raises its own ZError, and OSError
-                if not self.zenoh_error:
+                if delay == 1.0:
                     log.error("zenoh: cannot open the session (%s); retrying", exc)
                 self.zenoh_error = f"{exc.__class__.__name__}: {exc}"[:200]
                 await asyncio.sleep(delay)

@@ -30,7 +30,8 @@ from typing import Any
 
 import zenoh
 
-from navd.config import ZenohConfig
+from navd import files
+from navd.config import ConfigError, ZenohConfig
 from navd.formats import jsonlines
 from navd.records import BEACON_NAME, SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION
@@ -40,8 +41,23 @@ _COMMAND_TIMEOUT_S = 2.0
 _JSON = zenoh.Encoding.APPLICATION_JSON
 
 
+def read_zenoh_file(path: str) -> zenoh.Config:
+    """A zenoh JSON5 config file, read as every file from elsewhere (navd.files) and
+    parsed by zenoh; :class:`ConfigError` in one line naming the file."""
+    try:
+        text = files.read_text(path)
+    except files.FileRefused as exc:
+        raise ConfigError(f"zenoh.config_file: {exc}") from None
+    try:
+        return zenoh.Config.from_json5(text)
+    except Exception as exc:  # zenoh's ZError: its message may quote the file, so only its start
+        first = str(exc).splitlines()[0][:80] if str(exc) else exc.__class__.__name__
+        raise ConfigError(f"zenoh.config_file: {path}: zenoh refuses it ({first})") from None
+
+
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
-    cfg = zenoh.Config.from_file(z.config_file) if z.config_file else zenoh.Config()
+    """navd's zenoh config: the file, if any, with navd's own keys over it."""
+    cfg = read_zenoh_file(z.config_file) if z.config_file else zenoh.Config()
     cfg.insert_json5("mode", json.dumps(z.mode))
     # always set: left unset, a zenoh peer listens on every interface
     cfg.insert_json5("listen/endpoints", json.dumps(z.listen))
