@@ -88,7 +88,8 @@ def _cmd_foxglove(args: argparse.Namespace) -> int:
     from navd.foxglove_bridge import serve
 
     z = _config(args).zenoh
-    return serve(endpoints(z.listen, z.connect, args.connect), args.host, args.port, args.seconds)
+    where = endpoints(z.listen, z.connect, args.connect)
+    return serve(where, args.host, args.port, args.seconds, args.zenoh_config)
 
 
 def _cmd_check_config(args: argparse.Namespace) -> int:
@@ -156,8 +157,12 @@ def _cmd_watch(args: argparse.Namespace) -> int:
     from navd.watch import watch, watch_fleet
 
     if args.fleet:
-        return watch_fleet(_config(args), args.seconds, args.every, args.connect)
-    return watch(_config(args), args.count, args.seconds, args.every, args.connect)
+        return watch_fleet(
+            _config(args), args.seconds, args.every, args.connect, args.zenoh_config
+        )
+    return watch(
+        _config(args), args.count, args.seconds, args.every, args.connect, args.zenoh_config
+    )
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
@@ -343,6 +348,12 @@ def _connect_option(p: argparse.ArgumentParser) -> None:
         metavar="ENDPOINT",
         help="zenoh endpoint (a vehicle, or a router for a fleet), e.g. tcp/10.0.0.1:7447; "
         "else the config's zenoh.connect, else its zenoh.listen",
+    )
+    p.add_argument(
+        "--zenoh-config",
+        metavar="FILE",
+        help="this tool's own zenoh JSON5 file: its user and password under the vehicle's "
+        "access control, or TLS (config/zenoh-client.json5)",
     )
 
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import threading
+import time
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Any
@@ -26,8 +28,18 @@ import zenoh
 
 from navd.formats import jsonlines
 from navd.schema import Advisory, Estimate, RangeDecision, from_dict
+from navd.zenohconf import read_zenoh_file
 
-__all__ = ["Answer", "NavClient", "NavFleet", "open_session"]
+__all__ = [
+    "Answer",
+    "Gone",
+    "NavClient",
+    "NavFleet",
+    "NavUnavailable",
+    "NoAnswer",
+    "Stale",
+    "open_session",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,8 +100,42 @@ def endpoints(listen: list[str], connect: list[str], asked: list[str] | None) ->
     return list(asked or connect or listen)
 
 
+class NavUnavailable(Exception):
+    """navd cannot be heard: what an autopilot must treat as "no position".  One line."""
+
+
+class Stale(NavUnavailable):
+    """No estimate within the staleness bound (navd stalled, reset, or the link is down)."""
+
+
+class Gone(NavUnavailable):
+    """navd's liveliness token went away: the daemon stopped, or its session died."""
+
+
+class NoAnswer(NavUnavailable):
+    """Nothing answered in time: navd is down, or this session may not read it."""
+
+
+def _user(config: zenoh.Config | None) -> str | None:
+    if config is None:
+        return None
+    try:
+        user = jsonlines.loads(config.get_json("transport/auth/usrpwd/user"))
+    except Exception:  # not set: zenoh says so by raising
+        return None
+    return user if isinstance(user, str) else None
+
+
 class NavClient:
-    """One vehicle's navigation over zenoh (keys in docs/zenoh.md)."""
+    """One vehicle's navigation over zenoh (keys in docs/zenoh.md), failing safe.
+
+    Everything it hands over is current: :meth:`latest` returns None rather than an
+    estimate older than ``stale_s`` or from before a reset; :meth:`estimates` raises
+    :class:`Stale` when no estimate came within ``stale_s`` and :class:`Gone` when
+    navd's liveliness token goes; :meth:`subscribe` reports the same to
+    ``on_unavailable``.  An autopilot treats all three, and integrity ``lost``, as
+    "position unknown" (docs/zenoh.md, "What the client guarantees").
+    """
 
     def __init__(
         self,
@@ -98,15 +144,32 @@ class NavClient:
         session: Any = None,
         timeout_s: float = 2.0,
         config: zenoh.Config | None = None,
+        config_file: str | None = None,
+        stale_s: float = 1.0,
     ) -> None:
-        """``config``: a zenoh config (e.g. with the user and password of
-        config/zenoh.json5's access control); ``session``: an open session to share."""
+        """``config`` or ``config_file``: a zenoh config (the user and password of
+        config/zenoh.json5's access control, TLS); ``session``: an open session to
+        share.  ``stale_s``: an estimate older than this is no position (10 Hz: 1 s)."""
         self.vehicle = vehicle
         self.prefix = f"auv/{vehicle}/nav"
         self.timeout_s = timeout_s
+        self.stale_s = stale_s
+        if config_file is not None:
+            config = read_zenoh_file(config_file, "zenoh config")
+        self.user = _user(config)
         self._own = session is None
-        self.session = session if session is not None else open_session(connect, config)
+        if session is None:
+            try:
+                session = open_session(connect, config)
+            except zenoh.ZError as exc:
+                who = f"user '{self.user}'" if self.user else "no user (none configured)"
+                raise NavUnavailable(
+                    f"cannot open a zenoh session to {', '.join(connect or []) or 'navd'}: "
+                    f"{str(exc)[:120]} (is navd listening there, and does it know {who}?)"
+                ) from None
+        self.session = session
         self._subs: list[Any] = []
+        self._watchdogs: list[threading.Event] = []
 
     def __enter__(self) -> NavClient:
         return self
@@ -115,6 +178,8 @@ class NavClient:
         self.close()
 
     def close(self) -> None:
+        for stop in self._watchdogs:
+            stop.set()
         for s in self._subs:
             with contextlib.suppress(Exception):
                 s.undeclare()
@@ -122,24 +187,56 @@ class NavClient:
         if self._own:
             self.session.close()
 
+    def _no_answer(self) -> NoAnswer:
+        who = f"user '{self.user}'" if self.user else "this session (no user)"
+        return NoAnswer(
+            f"no answer from {self.prefix} within {self.timeout_s:g} s: is navd up, "
+            f"and may {who} read it?"
+        )
+
     # -- reading -------------------------------------------------------------------
-    def latest(self) -> Estimate | None:
-        """The daemon's newest estimate (its ``latest`` queryable), or None."""
+    def latest(self, max_age_s: float | None = None) -> Estimate | None:
+        """The daemon's newest estimate, if it is at most ``max_age_s`` (default
+        ``stale_s``) old; None otherwise, and None if there is none since a reset."""
+        bound = self.stale_s if max_age_s is None else max_age_s
         for reply in self.session.get(f"{self.prefix}/latest", timeout=self.timeout_s):
-            if reply.ok is not None:
-                e = _typed(Estimate, reply.ok.payload)
-                if e is not None:
-                    return e
+            if reply.ok is None:
+                continue  # navd said why it has none (stale, reset)
+            d = _decode(reply.ok.payload)
+            age = d.get("age_s") if d is not None else None
+            if isinstance(age, bool) or not isinstance(age, int | float) or not 0 <= age <= bound:
+                continue  # no age (not navd's answer) or too old
+            e = _typed(Estimate, reply.ok.payload)
+            if e is not None:
+                return e
         return None
+
+    def check(self) -> None:
+        """Raise :class:`NoAnswer`, saying what to look at, unless navd answers."""
+        for reply in self.session.get(f"{self.prefix}/latest", timeout=self.timeout_s):
+            if reply.ok is not None or reply.err is not None:
+                return
+        raise self._no_answer()
 
     def subscribe(
         self,
         on_estimate: Callable[[Estimate], None] | None = None,
         on_range: Callable[[RangeDecision], None] | None = None,
         on_advisory: Callable[[Advisory], None] | None = None,
+        on_unavailable: Callable[[NavUnavailable], None] | None = None,
     ) -> None:
         """Call back on every estimate (10 Hz), range decision and observability
-        advisory (1 Hz), on a zenoh thread."""
+        advisory (1 Hz), on a zenoh thread; and ``on_unavailable`` with :class:`Stale`
+        or :class:`Gone` when estimates stop for ``stale_s`` or navd goes (once per
+        silence, again after estimates have come back)."""
+        last = [time.monotonic()]
+        if on_unavailable is not None and on_estimate is not None:
+            user_cb = on_estimate
+
+            def on_estimate(e: Estimate) -> None:
+                last[0] = time.monotonic()
+                user_cb(e)
+
         for kind, cls, callback in (
             ("estimate", Estimate, on_estimate),
             ("range", RangeDecision, on_range),
@@ -151,23 +248,77 @@ class NavClient:
                         f"{self.prefix}/{kind}", _typed_callback(cls, callback)
                     )
                 )
+        if on_unavailable is not None:
+            self._watch(last, on_unavailable)
 
-    async def estimates(self, maxsize: int = 64) -> AsyncIterator[Estimate]:
-        """Every estimate, in the event loop; the oldest are dropped if it falls behind."""
+    def _watch(self, last: list[float], report: Callable[[NavUnavailable], None]) -> None:
+        stop = threading.Event()
+        self._watchdogs.append(stop)
+        said = [0.0]  # the estimate time last reported as stale or gone
+
+        def gone(sample: Any) -> None:
+            if sample.kind == zenoh.SampleKind.DELETE and said[0] != last[0]:
+                said[0] = last[0]
+                report(Gone(f"{self.prefix}: navd's liveliness token went away"))
+
+        self._subs.append(
+            self.session.liveliness().declare_subscriber(f"{self.prefix}/alive", gone)
+        )
+
+        def run() -> None:
+            while not stop.wait(min(0.1, self.stale_s / 4)):
+                quiet = time.monotonic() - last[0]
+                if quiet > self.stale_s and said[0] != last[0]:
+                    said[0] = last[0]
+                    report(Stale(f"{self.prefix}: no estimate for {quiet:.1f} s"))
+
+        threading.Thread(target=run, name=f"navd-client {self.prefix}", daemon=True).start()
+
+    async def estimates(
+        self, maxsize: int = 64, stale_s: float | None = None
+    ) -> AsyncIterator[Estimate]:
+        """Every estimate, in the event loop; the oldest are dropped if it falls behind.
+
+        Raises :class:`Stale` when none came within ``stale_s`` (default the client's),
+        and :class:`Gone` when navd's liveliness token goes: the loop never waits on a
+        dead daemon."""
+        bound = self.stale_s if stale_s is None else stale_s
         loop = asyncio.get_running_loop()
-        queue: asyncio.Queue[Estimate] = asyncio.Queue(maxsize)
+        queue: asyncio.Queue[Estimate | NavUnavailable] = asyncio.Queue(maxsize)
 
-        def put(e: Estimate) -> None:
+        def put(x: Estimate | NavUnavailable) -> None:
             if queue.full():
                 queue.get_nowait()
-            queue.put_nowait(e)
+            queue.put_nowait(x)
 
-        def hand_over(e: Estimate) -> None:
+        def on_estimate(e: Estimate) -> None:
             loop.call_soon_threadsafe(put, e)
 
-        self.subscribe(hand_over)
-        while True:
-            yield await queue.get()
+        def on_alive(sample: Any) -> None:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                loop.call_soon_threadsafe(
+                    put, Gone(f"{self.prefix}: navd's liveliness token went away")
+                )
+
+        subs = [
+            self.session.declare_subscriber(
+                f"{self.prefix}/estimate", _typed_callback(Estimate, on_estimate)
+            ),
+            self.session.liveliness().declare_subscriber(f"{self.prefix}/alive", on_alive),
+        ]
+        try:
+            while True:
+                try:
+                    x = await asyncio.wait_for(queue.get(), bound)
+                except TimeoutError:
+                    raise Stale(f"{self.prefix}: no estimate for {bound:g} s") from None
+                if isinstance(x, NavUnavailable):
+                    raise x
+                yield x
+        finally:
+            for s in subs:
+                with contextlib.suppress(Exception):
+                    s.undeclare()
 
     @property
     def alive(self) -> bool:
@@ -197,7 +348,8 @@ class NavClient:
                 d = _decode(reply.ok.payload) or {}
                 return Answer(bool(d.get("ok")), str(d.get("error", "")))
             return Answer(False, f"zenoh: {reply.err.payload.to_string()}")
-        return Answer(False, "no answer (is the daemon up, and may this session command it?)")
+        who = f"user '{self.user}'" if self.user else "this session (no user)"
+        return Answer(False, f"no answer from {self.prefix}: is navd up, and may {who} command it?")
 
 
 class NavFleet:
@@ -208,7 +360,10 @@ class NavFleet:
         connect: list[str] | None = None,
         session: Any = None,
         config: zenoh.Config | None = None,
+        config_file: str | None = None,
     ) -> None:
+        if config_file is not None:
+            config = read_zenoh_file(config_file, "zenoh config")
         self._own = session is None
         self.session = session if session is not None else open_session(connect, config)
         self.latest: dict[str, Estimate] = {}

@@ -17,18 +17,27 @@ from typing import Any
 from navd.client import open_session
 from navd.formats import jsonlines
 from navd.formats.foxglove_mcap import location_fix
+from navd.zenohconf import read_zenoh_file
 
 DEFAULT_PORT = 8765
 
 
 class Bridge:
-    def __init__(self, connect: list[str], host: str = "127.0.0.1", port: int = DEFAULT_PORT):
+    def __init__(
+        self,
+        connect: list[str],
+        host: str = "127.0.0.1",
+        port: int = DEFAULT_PORT,
+        zenoh_file: str | None = None,
+    ):
         import foxglove
 
         self._fg = foxglove
         self.ctx = foxglove.Context()
         self.server = foxglove.start_server(name="navd", host=host, port=port, context=self.ctx)
-        self.session = open_session(connect)
+        self.session = open_session(
+            connect, read_zenoh_file(zenoh_file, "--zenoh-config") if zenoh_file else None
+        )
         self._lock = threading.Lock()
         self._channels: dict[str, Any] = {}
         self.messages = 0
@@ -85,8 +94,14 @@ class Bridge:
             self.server.stop()
 
 
-def serve(connect: list[str], host: str, port: int, seconds: float | None = None) -> int:
-    bridge = Bridge(connect, host, port)
+def serve(
+    connect: list[str],
+    host: str,
+    port: int,
+    seconds: float | None = None,
+    zenoh_file: str | None = None,
+) -> int:
+    bridge = Bridge(connect, host, port, zenoh_file)
     print(f"navd foxglove: ws://{host}:{bridge.port} (open it in Foxglove)", flush=True)
     t_end = time.monotonic() + seconds if seconds else None
     try:

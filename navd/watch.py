@@ -12,7 +12,9 @@ import threading
 import time
 from collections import deque
 
-from navd.client import NavClient, NavFleet, endpoints
+import zenoh
+
+from navd.client import NavClient, NavFleet, NavUnavailable, endpoints
 from navd.config import Config
 from navd.schema import Advisory, Estimate, RangeDecision
 
@@ -49,6 +51,7 @@ def watch(
     seconds: float | None,
     every: float,
     connect: list[str] | None = None,
+    zenoh_file: str | None = None,
 ) -> int:
     got: deque[Estimate | RangeDecision | Advisory] = deque(maxlen=256)
     wake = threading.Event()
@@ -61,7 +64,12 @@ def watch(
     n = 0
     last_print = 0.0
     t_end = time.monotonic() + seconds if seconds else None
-    with NavClient(cfg.vehicle.name, _endpoints(cfg, connect)) as nav:
+    try:
+        nav = NavClient(cfg.vehicle.name, _endpoints(cfg, connect), config_file=zenoh_file)
+    except NavUnavailable as exc:
+        print(f"navd watch: {exc}", file=sys.stderr)
+        return 1
+    with nav:
         nav.subscribe(keep, keep, keep)
         try:
             while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
@@ -86,16 +94,28 @@ def watch(
                         last_print = now
         except KeyboardInterrupt:
             pass
-    if n == 0:
-        print("navd watch: no estimate received", file=sys.stderr)
-        return 1
+        if n == 0:
+            try:
+                nav.check()
+                print("navd watch: navd answers, but published no estimate", file=sys.stderr)
+            except NavUnavailable as exc:
+                print(f"navd watch: {exc}", file=sys.stderr)
+            return 1
     return 0
 
 
 def watch_fleet(
-    cfg: Config, seconds: float | None, every: float, connect: list[str] | None = None
+    cfg: Config,
+    seconds: float | None,
+    every: float,
+    connect: list[str] | None = None,
+    zenoh_file: str | None = None,
 ) -> int:
-    fleet = NavFleet(_endpoints(cfg, connect))
+    try:
+        fleet = NavFleet(_endpoints(cfg, connect), config_file=zenoh_file)
+    except zenoh.ZError as exc:
+        print(f"navd watch --fleet: cannot open a zenoh session: {str(exc)[:120]}", file=sys.stderr)
+        return 1
     t_end = time.monotonic() + seconds if seconds else None
     up: set[str] = set()
     seen = False

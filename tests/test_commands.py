@@ -45,6 +45,7 @@ class Loop:
         self.thread.start()
         self.seen: list[tuple[str, dict]] = []
         self.submerged = False
+        self.endpoints: list[str] = []
 
     def on_command(self, name: str, body: dict[str, Any]) -> str | None:
         if name == "reset" and self.submerged and not body.get("force"):
@@ -62,6 +63,7 @@ def vehicle() -> Iterator[tuple[Loop, Publisher, zenoh.Session]]:
     port = _free_port()
     zc = ZenohConfig(listen=[f"tcp/127.0.0.1:{port}"])
     loop = Loop()
+    loop.endpoints = list(zc.listen)
     pub = Publisher(zc, "t1", loop.loop, loop.on_command)
     client = zenoh.open(zenoh_config(replace(zc, listen=[], connect=list(zc.listen))))
     try:
@@ -309,3 +311,71 @@ def test_a_shore_link_over_tls_with_mutual_authentication(tmp_path) -> None:
     finally:
         pub.close()
         loop.close()
+
+
+def test_a_flood_of_malformed_commands_costs_a_valid_one_nothing(
+    vehicle: tuple[Loop, Publisher, zenoh.Session],
+) -> None:
+    """Another session floods malformed commands; the autopilot's are all accepted."""
+    loop, pub, client = vehicle
+    flooder = zenoh.open(zenoh_config(ZenohConfig(listen=[], connect=loop.endpoints)))
+    stop = threading.Event()
+
+    def flood() -> None:
+        while not stop.is_set():
+            flooder.get("auv/t1/nav/cmd/beacon", payload=b'{"name":', timeout=1.0)
+
+    threads = [threading.Thread(target=flood, daemon=True) for _ in range(3)]
+    for th in threads:
+        th.start()
+    try:
+        answers = [
+            _ask(
+                client, "beacon", json.dumps({"name": f"b{k}", "lat": 37.0, "lon": -80.0}).encode()
+            )
+            for k in range(COMMAND_BURST)
+        ]
+    finally:
+        stop.set()
+        for th in threads:
+            th.join(5)
+        flooder.close()
+    assert answers == [[{"ok": True}]] * COMMAND_BURST
+    assert pub.commands["rejected"] > 20 and pub.commands["rate_limited"] == 0
+
+
+def test_a_key_given_twice_is_refused(vehicle: tuple[Loop, Publisher, zenoh.Session]) -> None:
+    loop, pub, client = vehicle
+    loop.submerged = True
+    (reply,) = _ask(client, "reset", b'{"force": false, "force": true}')
+    assert reply["ok"] is False and "'force' given twice" in reply["error"]
+    assert loop.seen == []
+    assert isinstance(parse_command(b'{"lat": NaN, "name": "a", "lon": 0}', validate_beacon), str)
+
+
+def test_resets_are_spaced_so_that_they_cannot_stop_navigation(tmp_path) -> None:
+    """Any reset at most once per 10 s, a forced one at most once a minute."""
+    from navd.config import config_from_dict
+    from navd.daemon.daemon import Daemon
+
+    now = [100.0]
+    cfg = config_from_dict(
+        {
+            "log": {"dir": str(tmp_path)},
+            "devices": {
+                n: {"enabled": False} for n in ("ahrs", "gps", "pressure", "motor", "modem")
+            },
+        }
+    )
+    d = Daemon(cfg, clock=lambda: now[0])
+    assert d.on_command("reset", {}) is None
+    now[0] += 5.0
+    assert "at most one every 10 s" in (d.on_command("reset", {}) or "")
+    now[0] += 6.0
+    assert d.on_command("reset", {"force": True}) is None
+    now[0] += 11.0
+    assert "once every 60 s" in (d.on_command("reset", {"force": True}) or "")
+    assert d.on_command("reset", {}) is None  # an unforced one, 11 s later, is fine
+    now[0] += 50.0
+    assert d.on_command("reset", {"force": True}) is None
+    d.rlog.close()

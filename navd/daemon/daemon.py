@@ -41,6 +41,8 @@ from navd.schema import Health, to_dict
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
+RESET_SPACING_S = 10.0  # any reset at most this often
+FORCED_RESET_SPACING_S = 60.0  # a forced one (it stops navigation until the next fix)
 ZENOH_OPEN_WARN_S = 5.0  # a session not open by then is said in health (it goes on trying)
 STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is closed in time
 D = TypeVar("D", bound=Device)
@@ -114,6 +116,8 @@ class Daemon:
         self.internal_errors: dict[str, int] = {}
         self._t_internal_error: float | None = None
         self.zenoh_error = ""  # why the zenoh session is not open, while it is not
+        self._t_reset = -math.inf  # the last accepted reset, and the last forced one
+        self._t_forced = -math.inf
 
     # -- records in ------------------------------------------------------------------
     def feed(self, rec: Any) -> None:
@@ -169,7 +173,19 @@ class Daemon:
             if self.nav.mode(t) == "submerged" and not body.get("force"):
                 # submerged, the filter cannot start again until the vehicle surfaces
                 return "submerged: a reset stops navigation until the next GPS fix; send force"
+            # each reset stops the estimates until the next fix: their rate is bounded so
+            # that no run of them, however well-formed, can keep navd from navigating
+            since = t - self._t_reset
+            if since < RESET_SPACING_S:
+                return f"a reset {since:.1f} s ago: at most one every {RESET_SPACING_S:g} s"
+            if body.get("force") and t - self._t_forced < FORCED_RESET_SPACING_S:
+                return f"a forced reset at most once every {FORCED_RESET_SPACING_S:g} s"
+            self._t_reset = t
+            if body.get("force"):
+                self._t_forced = t
             self.feed(Reset(t))
+            if self.pub is not None:
+                self.pub.forget_latest()
         elif name == "beacon":
             known = self.nav.beacons.beacons
             if body["name"] not in known and len(known) >= MAX_BEACONS:

@@ -30,29 +30,15 @@ from typing import Any
 
 import zenoh
 
-from navd import files
-from navd.config import ConfigError, ZenohConfig
+from navd.config import ZenohConfig
 from navd.formats import jsonlines
 from navd.records import BEACON_NAME, SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION
 from navd.validation import Invalid, build, text
+from navd.zenohconf import read_zenoh_file
 
 _COMMAND_TIMEOUT_S = 2.0
 _JSON = zenoh.Encoding.APPLICATION_JSON
-
-
-def read_zenoh_file(path: str) -> zenoh.Config:
-    """A zenoh JSON5 config file, read as every file from elsewhere (navd.files) and
-    parsed by zenoh; :class:`ConfigError` in one line naming the file."""
-    try:
-        text = files.read_text(path)
-    except files.FileRefused as exc:
-        raise ConfigError(f"zenoh.config_file: {exc}") from None
-    try:
-        return zenoh.Config.from_json5(text)
-    except Exception as exc:  # zenoh's ZError: its message may quote the file, so only its start
-        first = str(exc).splitlines()[0][:80] if str(exc) else exc.__class__.__name__
-        raise ConfigError(f"zenoh.config_file: {path}: zenoh refuses it ({first})") from None
 
 
 def zenoh_config(z: ZenohConfig) -> zenoh.Config:
@@ -67,9 +53,15 @@ def zenoh_config(z: ZenohConfig) -> zenoh.Config:
     return cfg
 
 
+#: ``latest`` answers with an estimate at most this old, else with an error: an
+#: estimate from before a silence (a reset, a stalled filter) is not the vehicle's position
+LATEST_MAX_AGE_S = 1.0
 #: a command is a small JSON object; anything longer is refused before it is parsed
 MAX_COMMAND_BYTES = 4096
-#: commands accepted per second on average, and in a burst
+#: commands of one kind accepted per second on average, and in a burst.  Zenoh gives a
+#: queryable no authenticated name of its querier (a query's source_info is the
+#: querier's own say), so the budget is per command kind, and only well-formed
+#: commands spend it: a flood of malformed ones is answered and costs nothing.
 COMMAND_RATE_HZ = 2.0
 COMMAND_BURST = 5
 
@@ -140,7 +132,9 @@ def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], str | None]) 
     if len(raw) > MAX_COMMAND_BYTES:
         return f"payload longer than {MAX_COMMAND_BYTES} bytes"
     try:
-        body = jsonlines.loads(raw or b"{}")
+        body = jsonlines.loads_unique(raw or b"{}")
+    except jsonlines.DuplicateKey as exc:
+        return f"key '{str(exc)[:32]}' given twice"
     except (ValueError, RecursionError):  # bad JSON, bad UTF-8, nesting too deep
         return "payload must be a JSON object"
     if not isinstance(body, dict):
@@ -176,7 +170,8 @@ class Publisher:
             encoding=_JSON.with_schema(f"navd/estimate/{SCHEMA_VERSION}"),
         )
         self._second: float | None = None
-        self._latest: bytes = b"null"
+        self._latest: dict[str, Any] | None = None  # the newest estimate, and when it came
+        self._t_latest = -math.inf
         self._lock = threading.Lock()
         self._queryables = [
             s.declare_queryable(f"{self.prefix}/latest", self._answer_latest),
@@ -189,14 +184,16 @@ class Publisher:
         self.seq = {"estimate": 0, "range": 0, "health": 0, "advisory": 0}
         self.errors = 0
         self.commands = {"accepted": 0, "rejected": 0, "rate_limited": 0}
-        self._bucket = TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST)
+        self._buckets = {
+            kind: TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST) for kind in ("reset", "beacon")
+        }
 
     def put(self, kind: str, body: dict[str, Any]) -> bytes:
         self.seq[kind] += 1
         payload = encode(self.seq[kind], body)
         if kind == "estimate":
             with self._lock:
-                self._latest = payload
+                self._latest, self._t_latest = body, time.monotonic()
             second = math.floor(body.get("t", 0.0))
             if second != self._second:
                 self._second = second
@@ -208,10 +205,23 @@ class Publisher:
             self.errors += 1
         return payload
 
+    def forget_latest(self) -> None:
+        """A reset: the estimate before it must not be the answer after it."""
+        with self._lock:
+            self._latest, self._t_latest = None, -math.inf
+
     def _answer_latest(self, query: zenoh.Query) -> None:
         with self._lock:
-            payload = self._latest
-        query.reply(f"{self.prefix}/latest", payload, encoding=_JSON)
+            body, t = self._latest, self._t_latest
+        age = time.monotonic() - t
+        with contextlib.suppress(Exception):
+            if body is None or age > LATEST_MAX_AGE_S:
+                why = "none since a reset" if body is None else f"the last is {age:.1f} s old"
+                query.reply_err(jsonlines.dumps({"error": f"no current estimate ({why})"}))
+                return
+            # its age when sent: the querier's clock need not be the vehicle's
+            payload = encode(self.seq["estimate"], {**body, "age_s": round(age, 3)})
+            query.reply(f"{self.prefix}/latest", payload, encoding=_JSON)
 
     def _command(self, name: str, validate: Callable[[dict[str, Any]], str | None]):
         def handle(query: zenoh.Query) -> None:
@@ -229,13 +239,13 @@ class Publisher:
     def _decide(
         self, name: str, validate: Callable[[dict[str, Any]], str | None], query: zenoh.Query
     ) -> dict[str, Any]:
-        if not self._bucket.take():
-            self.commands["rate_limited"] += 1
-            return {"ok": False, "error": "rate limited: try again later"}
         raw = query.payload.to_bytes() if query.payload is not None else b"{}"
         body = parse_command(raw, validate)
         if isinstance(body, str):
-            return {"ok": False, "error": body}
+            return {"ok": False, "error": body}  # answered, and no well-formed one's budget
+        if not self._buckets[name].take():
+            self.commands["rate_limited"] += 1
+            return {"ok": False, "error": "rate limited: try again later"}
         # the daemon's state decides the rest (a reset while submerged, the beacon
         # table full): ask the event loop and wait for its answer
         fut: concurrent.futures.Future[str | None] = concurrent.futures.Future()

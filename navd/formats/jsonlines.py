@@ -20,7 +20,31 @@ try:
 except ImportError:  # pragma: no cover - orjson is a dependency; the fallback is for vendors
     orjson = None  # type: ignore[assignment]
 
-__all__ = ["loads", "dumps", "dumps_line", "read", "DecodeError"]
+__all__ = ["loads", "loads_unique", "dumps", "dumps_line", "read", "DecodeError", "DuplicateKey"]
+
+
+class DuplicateKey(ValueError):
+    """A JSON object that names a key twice (JSON keeps the last, silently)."""
+
+
+def _refuse_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise DuplicateKey(k)
+        out[k] = v
+    return out
+
+
+def loads_unique(text: str | bytes) -> Any:
+    """``loads`` for a small message whose meaning a repeated key could change (a
+    command: ``{"force": false, "force": true}``); raises DuplicateKey or a DecodeError.
+    The standard library's parser, for its hook: commands are at most a few kB."""
+    return json.loads(text, object_pairs_hook=_refuse_duplicates, parse_constant=_no_constant)
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not JSON")  # NaN, Infinity: as orjson refuses them
 
 if orjson is not None:
     DecodeError: tuple[type[Exception], ...] = (orjson.JSONDecodeError, RecursionError)
