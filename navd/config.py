@@ -73,6 +73,12 @@ class GateConfig:
     # gets the tighter gate (4 = 2 sigma).
     chi2_long: float = _num(4.0, gt=0.0)
     reacquire_after: int = _num(3, lo=1, hi=100)  # consecutive rejections before re-acquiring
+    # A GPS fix whose innovation (from the estimate, with its covariance and the fix's
+    # std) is past this chi-square on 2 degrees of freedom is refused: 25 is Fulton's
+    # gamma (seed 003), a one-in-270,000 chance for a fix that fits the estimate.
+    gps_chi2: float = _num(25.0, gt=0.0)
+    # refused fixes that agree with each other, in a row, before they are the position
+    gps_agree: int = _num(4, lo=2, hi=100)
     max_beacon_speed_mps: float = _num(8.0, gt=0.0)  # faster apparent beacon motion = corrupt
     max_range_m: float = _num(10000.0, gt=0.0)
 
@@ -102,6 +108,9 @@ class IntegrityConfig:
     window: int = _num(10, lo=3, hi=100)  # ranges in the consistency test
     degraded_std_m: float = _num(25.0, gt=0.0)
     lost_std_m: float = _num(100.0, gt=0.0)
+    # refused ranges or fixes in a row (whatever the window holds) for degraded, and lost
+    degraded_refused: int = _num(3, lo=1, hi=1000)
+    lost_refused: int = _num(8, lo=1, hi=1000)
 
 
 @dataclass(frozen=True, slots=True)

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 
+from navd import geodesy
 from navd.config import NavigationConfig, SiteConfig
+from navd.filter.common import StateEstimate
 from navd.records import Gps
 
 FRESH_S = 2.0  # a fix this recent means "GPS available" (seed 000 Algorithm 2, line 13)
@@ -102,3 +104,53 @@ class GpsFixes:
         if warm and rec.quality not in RTK_STD_M:
             std = max(std, self.nav.gps.warmup_std_m)
         return std, said
+
+
+#: the fastest the vehicle moves at the surface, for how far apart two fixes may be
+SURFACE_SPEED_MAX_MPS = 3.0
+
+
+class GpsGate:
+    """GPS fixes gated like ranges: one far outside the estimate is refused.
+
+    A fix is refused when its innovation, from the estimate with the estimate's
+    covariance and the fix's own std, is past ``chi2`` on two degrees of freedom
+    (Fulton 2000, seed 003: REMUS refuses a fix outside an error circle around its
+    estimate).  One bad fix (a receiver's (0, 0), a corrupt sentence that passed its
+    checksum) then costs nothing.  But an estimate that drifted beyond its own
+    covariance underwater must still be corrected at the surface: refused fixes
+    that agree with each other ``agree`` times in a row are the position, the same
+    principle as re-acquisition from consistent evidence (filter/reacquire.py).
+    """
+
+    def __init__(self, chi2: float, agree: int) -> None:
+        self.chi2 = chi2
+        self.agree = agree
+        self._refused: list[tuple[float, float, float, float]] = []  # t, n, e, std
+
+    def clear(self) -> None:
+        self._refused.clear()
+
+    def judge(self, est: StateEstimate, lat: float, lon: float, std: float, t: float) -> str:
+        """``fuse``, ``refuse``, or ``take`` (the refused fixes agree: restart at this one).
+
+        ``lat``/``lon`` in radians, as the estimate's."""
+        e, n, _ = geodesy.enu_offset(est.lat, est.lon, 0.0, lat, lon, 0.0)
+        snn, see, sne = est.var_n + std**2, est.var_e + std**2, est.cov_ne
+        det = snn * see - sne * sne
+        d2 = (see * n * n - 2.0 * sne * n * e + snn * e * e) / det if det > 0 else math.inf
+        if d2 <= self.chi2:
+            self._refused.clear()
+            return "fuse"
+        # positions relative to the estimate: two fixes agree when no faster motion than
+        # the surface's and their own errors separate them
+        if self._refused:
+            t0, n0, e0, s0 = self._refused[-1]
+            apart = math.hypot(n - n0, e - e0)
+            if apart > 3.0 * math.hypot(std, s0) + SURFACE_SPEED_MAX_MPS * (t - t0):
+                self._refused.clear()
+        self._refused.append((t, n, e, std))
+        if len(self._refused) >= self.agree:
+            self._refused.clear()
+            return "take"
+        return "refuse"

@@ -12,6 +12,9 @@ tests that do not need the truth:
   which the gate refused most ranges says the filter and its ranges disagree.
 * **Covariance.**  The largest one-sigma axis of the position ellipse against
   ``degraded_std_m`` and ``lost_std_m``.
+* **A run of refusals.**  Ranges or GPS fixes refused in a row, however few the
+  window holds (a GPS fix empties it): ``degraded_refused`` of them is degraded,
+  ``lost_refused`` lost.  Each refusal says the estimate and its inputs disagree.
 
 ``lost`` means no range agrees with the estimate any more, or its own
 uncertainty is past the site's limit; an autopilot should surface for GPS.
@@ -38,9 +41,19 @@ def chi2_quantile(p: float, dof: int) -> float:
 
 
 class Integrity:
-    def __init__(self, window: int, degraded_std_m: float, lost_std_m: float) -> None:
+    def __init__(
+        self,
+        window: int,
+        degraded_std_m: float,
+        lost_std_m: float,
+        degraded_refused: int = 3,
+        lost_refused: int = 8,
+    ) -> None:
         self.degraded_std_m = degraded_std_m
         self.lost_std_m = lost_std_m
+        self.degraded_refused = degraded_refused
+        self.lost_refused = lost_refused
+        self.refused_run = 0  # ranges or fixes refused in a row
         self._ranges: deque[tuple[bool, float]] = deque(maxlen=window)
         self.reason = ""
         # what assess() needs of the window, worked out when it changes (a range) rather
@@ -52,11 +65,17 @@ class Integrity:
     def clear(self) -> None:
         """A position fix (GPS) or a restart: the ranges before it say nothing now."""
         self._ranges.clear()
+        self.refused_run = 0
         self._summarise()
 
     def range(self, accepted: bool, nis: float) -> None:
         self._ranges.append((accepted, nis))
+        self.refused_run = 0 if accepted else self.refused_run + 1
         self._summarise()
+
+    def fix_refused(self) -> None:
+        """A GPS fix the gate refused: the estimate and the receiver disagree."""
+        self.refused_run += 1
 
     def _summarise(self) -> None:
         window = self._ranges
@@ -77,8 +96,14 @@ class Integrity:
         if full and rejected == len(window):
             self.reason = f"the last {len(window)} ranges all refused"
             return LOST
+        if self.refused_run >= self.lost_refused:
+            self.reason = f"{self.refused_run} ranges or fixes refused in a row"
+            return LOST
         if std_max_m > self.degraded_std_m:
             self.reason = f"position std {std_max_m:.0f} m over {self.degraded_std_m:g} m"
+            return DEGRADED
+        if self.refused_run >= self.degraded_refused:
+            self.reason = f"{self.refused_run} ranges or fixes refused in a row"
             return DEGRADED
         nis = self._nis
         if len(nis) >= 3 and sum(nis) > self._nis_limit:

@@ -33,7 +33,7 @@ from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
-from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes
+from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
 from navd.filter.integrity import Integrity
 from navd.filter.smoother import rts_smooth
 from navd.filter.thesis import ThesisEKF
@@ -108,7 +108,9 @@ class Navigator:
         self.tick_dt = 1.0 / nav.rate_hz
         self.counters: Counter[str] = Counter()
         ig = nav.integrity
-        self.integrity = Integrity(ig.window, ig.degraded_std_m, ig.lost_std_m)
+        self.integrity = Integrity(
+            ig.window, ig.degraded_std_m, ig.lost_std_m, ig.degraded_refused, ig.lost_refused
+        )
         self.observability = Observability()
         self.warnings: list[str] = list(self.sound.warnings())
 
@@ -120,6 +122,7 @@ class Navigator:
         self._t_rpm = -math.inf
         self.depth = DepthGauge(cfg.site)
         self.gps = GpsFixes(nav, cfg.site)
+        self.gps_gate = GpsGate(nav.gate.gps_chi2, nav.gate.gps_agree)
         self._tick_steps: list[tuple[int, Estimate]] = []
         self._smoothed_done: list[dict[str, Any]] = []
 
@@ -174,6 +177,7 @@ class Navigator:
         self._tick_k = None
         self._t_filter = None
         self.gps.forget()
+        self.gps_gate.clear()
 
     def _on_reset(self, rec: Reset) -> None:
         self.restart("command")
@@ -309,6 +313,19 @@ class Navigator:
             return
         lat, lon = math.radians(rec.lat), math.radians(rec.lon)
         hd = self.surface_altitude - self.depth.m
+        if self.filter.initialised:
+            # the first fix of a mission, and the first after a reset, are not gated
+            verdict = self.gps_gate.judge(self.filter.estimate(), lat, lon, std, rec.t)
+            if verdict == "refuse":
+                self.counters["gps_refused_gate"] += 1
+                self.integrity.fix_refused()
+                return
+            if verdict == "take":
+                # several fixes agree with each other and not with the estimate: it had
+                # drifted beyond its covariance, and they are the position
+                self.counters["gps_reacquired"] += 1
+                self.restart("gps_disagrees")
+                self.gps.t_last = rec.t  # this fix counts: it is the one restarting it
         if not self.filter.initialised:
             self.filter.initialise(lat, lon, std, rec.t)
             self._t_filter = rec.t

@@ -1,0 +1,118 @@
+"""One bad GPS fix never moves the estimate, and integrity says when inputs disagree.
+
+What an autopilot relies on: an estimate marked ``ok`` is near the truth.  A single
+valid-checksum fix at (0, 0), or tens of kilometres off, is refused and counted; an
+estimate that drifted beyond its covariance underwater is still corrected by fixes
+that agree with each other; a run of refused ranges is ``degraded`` then ``lost``
+however few ranges the integrity window holds.
+"""
+
+from __future__ import annotations
+
+import math
+
+from navd import geodesy
+from navd.config import config_from_dict
+from navd.filter import Navigator
+from navd.records import Depth, Gps, Heading, Range, Rpm
+
+LAT0, LON0 = 37.05, -80.66
+
+
+def _nav() -> Navigator:
+    return Navigator(config_from_dict({"navigation": {"speed": {"rpm_per_mps": 1000.0}}}))
+
+
+def _surface(
+    nav: Navigator,
+    t0: float,
+    t1: float,
+    lat: float = LAT0,
+    lon: float = LON0,
+    bad: dict[float, tuple[float, float]] | None = None,
+) -> list[dict]:
+    """The vehicle still at the surface, a fix a second (``bad`` replaces some)."""
+    out: list[dict] = []
+    t = t0
+    while t < t1:
+        out += nav.feed(Heading(t, 0.0))
+        out += nav.feed(Depth(t + 0.01, 0.0))
+        if abs(t - round(t)) < 1e-9:
+            la, lo = (bad or {}).get(round(t), (lat, lon))
+            out += nav.feed(Gps(t + 0.02, la, lo, 0.0, 1, 1.0, 1))
+        t = round(t + 0.1, 1)
+    return out
+
+
+def _error_m(e: dict, lat: float = LAT0, lon: float = LON0) -> float:
+    de, dn, _ = geodesy.enu_offset(
+        math.radians(lat),
+        math.radians(lon),
+        0.0,
+        math.radians(e["lat"]),
+        math.radians(e["lon"]),
+        0.0,
+    )
+    return math.hypot(de, dn)
+
+
+def test_one_fix_at_zero_zero_is_refused_and_moves_nothing() -> None:
+    nav = _nav()
+    out = _surface(nav, 0.0, 60.0, bad={40: (0.0, 0.0)})
+    est = [o for o in out if o["type"] == "estimate" and o["t"] > 5.0]
+    assert max(_error_m(e) for e in est) < 10.0
+    assert nav.counters["gps_refused_gate"] == 1
+    assert nav.counters["gps_reacquired"] == 0
+
+
+def test_fixes_28_km_off_are_refused_and_said() -> None:
+    """Minutes of 75 once read as 38.25 degrees: three such fixes in a row."""
+    nav = _nav()
+    bad = {30: (38.25, LON0), 31: (38.25, LON0), 32: (38.25, LON0)}
+    out = _surface(nav, 0.0, 60.0, bad=bad)
+    est = [o for o in out if o["type"] == "estimate" and o["t"] > 5.0]
+    assert max(_error_m(e) for e in est) < 10.0 and nav.counters["gps_refused_gate"] == 3
+    # three refused in a row: the estimate and the receiver disagree, and it is said
+    assert all(o["integrity"] == "degraded" for o in est if 32.1 < o["t"] < 33.0)
+    assert all(o["integrity"] == "ok" for o in est if o["t"] > 33.1)  # a good fix again
+
+
+def test_fixes_that_agree_with_each_other_are_the_position() -> None:
+    """The estimate drifted beyond its covariance: agreeing fixes correct it, quickly."""
+    nav = _nav()
+    _surface(nav, 0.0, 30.0)
+    # the receiver (or the world) now says 500 m north, and keeps saying it
+    north = geodesy.offset_position(math.radians(LAT0), math.radians(LON0), 500.0, 0.0, 0.0)
+    lat1, lon1 = math.degrees(north[0]), math.degrees(north[1])
+    out = _surface(nav, 30.0, 60.0, lat=lat1, lon=lon1)
+    est = [o for o in out if o["type"] == "estimate"]
+    late = [e for e in est if e["t"] > 40.0]
+    assert late and max(_error_m(e, lat1, lon1) for e in late) < 10.0
+    assert nav.counters["gps_reacquired"] == 1
+    assert nav.counters["gps_refused_gate"] == nav.nav.gate.gps_agree - 1
+
+
+def test_a_run_of_refused_ranges_is_degraded_then_lost_whatever_the_window_holds() -> None:
+    nav = _nav()
+    _surface(nav, 0.0, 20.0)
+    out: list[dict] = []
+    t = 20.0
+    beacon = (37.0510, -80.6600, 2.0)  # 110 m north
+    k = 0
+    while t < 200.0:
+        out += nav.feed(Heading(t, 0.0))
+        out += nav.feed(Rpm(t + 0.01, 0.0))
+        out += nav.feed(Depth(t + 0.02, 5.0))
+        if abs(t % 10.0) < 1e-6 and t > 20.0:
+            k += 1  # a range of 2 km from a beacon 110 m away: refused every time
+            out += nav.feed(Range(t + 0.05, t - 0.5, 2000.0, "udb", *beacon))
+        t = round(t + 0.1, 1)
+    est = [o for o in out if o["type"] == "estimate"]
+    refused = [o for o in out if o["type"] == "range" and not o["accepted"]]
+    assert len(refused) >= 9
+    t3, t8 = refused[2]["t"], refused[7]["t"]
+    assert all(e["integrity"] == "ok" for e in est if 20.5 < e["t"] < refused[1]["t"] + 0.05)
+    assert all(e["integrity"] != "ok" for e in est if e["t"] > t3 + 0.2)
+    # lost from the eighth on, until the ranges' own consistent evidence re-acquires
+    t_re = next(o["t"] for o in out if o["type"] == "range" and o["reason"] == "gate_reacquire")
+    assert all(e["integrity"] == "lost" for e in est if t8 + 0.2 < e["t"] < t_re)
