@@ -267,6 +267,21 @@ class LogConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class CheckpointConfig:
+    """The navigation state kept on disk, for a restart while submerged (filter/resume.py)."""
+
+    # empty: $STATE_DIRECTORY under systemd (StateDirectory=navd: /var/lib/navd); with
+    # neither, no checkpoint is kept (a development run)
+    dir: str = ""
+    every_s: float = _num(1.0, lo=0.1, hi=60.0)
+    # an older checkpoint is not resumed: the vehicle may be anywhere by then
+    max_age_s: float = _num(300.0, lo=0.0, hi=86_400.0)
+    # how fast the vehicle may have moved while navd was down (its speed and the
+    # current): the position's std grows by this times the checkpoint's age
+    drift_mps: float = _num(3.0, gt=0.0, hi=50.0)
+
+
+@dataclass(frozen=True, slots=True)
 class VehicleConfig:
     name: str = "690s"
 
@@ -280,6 +295,7 @@ class Config:
     devices: DevicesConfig = field(default_factory=DevicesConfig)
     zenoh: ZenohConfig = field(default_factory=ZenohConfig)
     log: LogConfig = field(default_factory=LogConfig)
+    checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
 
 
 DEV_LOG_DIR = "navd-log"

@@ -134,6 +134,27 @@ class SetBeacon:
 
 
 @dataclass(frozen=True, slots=True)
+class Resume:
+    """navd started again and resumed the navigation state of its checkpoint.
+
+    The daemon writes it into its log as it applies it (``cmd_resume``), so that a
+    replay of the log resumes the same state and gives the estimates given live.
+    ``x`` and ``P`` are the filter's state vector and covariance (row by row) as
+    ``mode``'s filter holds them; ``age_s`` how old the checkpoint was; the position
+    covariance has been grown for it already.
+    """
+
+    t: float
+    mode: str
+    x: tuple[float, ...]
+    P: tuple[float, ...]
+    age_s: float
+    surface_bar: float | None = None  # the depth gauge's zero
+    surface_alt: float | None = None  # the water's ellipsoidal height
+    depth_m: float | None = None  # the depth then: the vehicle is submerged until it says not
+
+
+@dataclass(frozen=True, slots=True)
 class Tick:
     """A filter step the daemon took at ``t``, read back from its log (an ``estimate`` line).
 
@@ -158,6 +179,7 @@ Record = (
     | Velocity
     | Reset
     | SetBeacon
+    | Resume
 )
 
 #: measurement-log ``type`` name of each record class
@@ -173,6 +195,7 @@ TYPE_NAMES: dict[type, str] = {
     Velocity: "velocity",
     Reset: "cmd_reset",
     SetBeacon: "cmd_beacon",
+    Resume: "cmd_resume",
 }
 
 
@@ -211,6 +234,10 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (SetBeacon, "lat"): (-90.0, 90.0),
     (SetBeacon, "lon"): (-180.0, 180.0),
     (SetBeacon, "depth"): (0.0, 11_000.0),
+    (Resume, "age_s"): (0.0, 1e6),
+    (Resume, "surface_bar"): (0.0, 2000.0),
+    (Resume, "surface_alt"): (-1000.0, 10_000.0),
+    (Resume, "depth_m"): (-100.0, 11_000.0),
 }
 #: a time stamp beyond about 30 years of seconds is corrupt, not a mission
 MAX_ABS_T = 1e9
@@ -244,6 +271,12 @@ def implausible(rec: object) -> str | None:
         tv = type(v)
         if tv is not float and tv is not int:  # the common case first: replay reads 1e5/s
             if v is None or tv is str:
+                continue
+            if tv is tuple:  # a state vector: finite numbers, of bounded size
+                if len(v) > 256 or not all(
+                    type(a) in (float, int) and math.isfinite(a) and abs(a) < 1e12 for a in v
+                ):
+                    return f"field '{name}' is not a list of finite numbers"
                 continue
             if isinstance(v, bool) or not isinstance(v, int | float):
                 return f"field '{name}' is not a finite number"

@@ -147,6 +147,8 @@ class Health:
     temperature_c: float | None
     gps_utc: str | None
     esc: dict[str, float]
+    # the checkpoint kept for a restart, and what this run resumed from (None: not kept)
+    checkpoint: dict[str, Any] | None = _optional()
     type: str = "health"
 
 

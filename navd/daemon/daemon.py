@@ -22,6 +22,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from navd.config import Config, log_dir
+from navd.daemon.checkpoint import Checkpoints, checkpoint_dir, config_digest
 from navd.daemon.devices import (
     Device,
     GpsReceiver,
@@ -36,7 +37,7 @@ from navd.drivers.codec import DecodeStats
 from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
-from navd.records import MAX_BEACONS, Reset, SetBeacon
+from navd.records import MAX_BEACONS, Reset, Resume, SetBeacon, implausible
 from navd.schema import Health, to_dict
 
 log = logging.getLogger("navd")
@@ -65,6 +66,10 @@ class _Logged:
     def refeed(self, data: bytes, t: float) -> list[object]:
         """Bytes already logged, fed again after a decoder fault (not logged twice)."""
         return self.inner.feed(data, t)
+
+
+def _number_or_none(v: Any) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
 def _percentile(xs: list[float], q: float) -> float | None:
@@ -96,6 +101,11 @@ class Daemon:
         )
         self.publisher_factory = publisher_factory
         self.pub: Any = None
+        where = checkpoint_dir(cfg, os.environ)
+        self.checkpoints = (
+            Checkpoints(where, cfg.vehicle.name, config_digest(cfg)) if where is not None else None
+        )
+        self.resumed: dict[str, Any] | None = None  # what this run resumed from, if anything
         self.vitals = Vitals(
             cfg.navigation.rate_hz,
             cfg.devices.modem.ping_interval_s,
@@ -369,6 +379,15 @@ class Daemon:
                     "files_removed": self.rlog.removed_files,
                     "last_error": self.rlog.last_error,
                 },
+                checkpoint=None
+                if self.checkpoints is None
+                else {
+                    "file": str(self.checkpoints.path),
+                    "written": self.checkpoints.written,
+                    "errors": self.checkpoints.errors,
+                    "last_error": self.checkpoints.last_error,
+                    "resumed": self.resumed,
+                },
                 zenoh={"open": False, "error": self.zenoh_error}
                 if self.pub is None
                 else {
@@ -383,10 +402,58 @@ class Daemon:
             )
         )
 
+    def _resume(self) -> None:
+        """A checkpoint of this vehicle and config, young enough: navigate on from it."""
+        if self.checkpoints is None:
+            return
+        path = self.checkpoints.path
+        snap, said = self.checkpoints.load(self.cfg.checkpoint.max_age_s)
+        if snap is None:
+            if said:
+                log.warning("%s", said)
+            return
+        t = self.clock()
+        try:
+            rec = Resume(
+                t,
+                str(snap["mode"]),
+                tuple(float(v) for v in snap["x"]),
+                tuple(float(v) for v in snap["P"]),
+                float(snap["age_s"]),
+                _number_or_none(snap.get("surface_bar")),
+                _number_or_none(snap.get("surface_alt")),
+                _number_or_none(snap.get("depth_m")),
+            )
+        except (KeyError, TypeError, ValueError):
+            log.warning("checkpoint ignored: %s: fields missing or not numbers", path)
+            return
+        why = implausible(rec)
+        if why is not None:
+            log.warning("checkpoint ignored: %s: %s", path, why)
+            return
+        self.feed(rec)  # logged as cmd_resume: a replay of the log resumes the same
+        if self.nav.counters.get("resumed"):
+            self.resumed = {"t": t, "age_s": round(rec.age_s, 1), "lat": snap.get("lat"),
+                            "lon": snap.get("lon")}
+            log.info("resumed navigation from a checkpoint %.0f s old", rec.age_s)
+        else:
+            log.warning("checkpoint ignored: the filter refused it (%s)", dict(self.nav.counters))
+
+    async def _checkpointer(self) -> None:
+        if self.checkpoints is None:
+            return
+        while True:
+            await asyncio.sleep(self.cfg.checkpoint.every_s)
+            snap = self.nav.snapshot()
+            if snap is not None:
+                self.checkpoints.write(snap)
+
     async def run(self, stop: asyncio.Event) -> None:
         loop = asyncio.get_running_loop()
+        self._resume()
         self._start_devices()
         tasks = [
+            loop.create_task(self._checkpointer()),
             loop.create_task(self._zenoh()),
             loop.create_task(self._ticker()),
             loop.create_task(self._health()),

@@ -106,6 +106,8 @@ class NavFilter(Protocol):
 
     initialised: bool
     history: History
+    x: Any  # the state vector (its first two: latitude and longitude, radians)
+    P: np.ndarray
     #: the range as the modem computed it, not re-derived with the water's sound speed
     ranges_as_reported: bool
     #: ranges are fused only while there is no fresh GPS fix (seed 000 Algorithm 2)
@@ -118,6 +120,8 @@ class NavFilter(Protocol):
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None: ...
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None: ...
+
+    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None: ...
 
     def range_update(self, m: RangeMeas) -> GateDecision: ...
 

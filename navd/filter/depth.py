@@ -23,6 +23,16 @@ class DepthGauge:
         self.t = -math.inf  # when it was last measured
         self._p_surface: deque[float] = deque(maxlen=SURFACE_SAMPLES)
 
+    @property
+    def zero_bar(self) -> float | None:
+        """The surface pressure depth is measured from, if readings at the surface gave it."""
+        return statistics.median(self._p_surface) if self._p_surface else None
+
+    def zero_at(self, bar: float) -> None:
+        """The surface pressure of before a restart (the vehicle is submerged now)."""
+        self._p_surface.clear()
+        self._p_surface.append(bar)
+
     def depth(self, t: float, m: float) -> None:
         self.m, self.t = m, t
 

@@ -134,6 +134,13 @@ class RangeEKF:
         self.t_anchor = t
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
+    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+        """A checkpoint's state (a restart), its position variance grown by ``grow_m2``."""
+        self.x, self.P = x.copy(), P.copy()
+        self.P[0, 0] += grow_m2
+        self.P[1, 1] += grow_m2
+        self.history.correct(self.x.copy(), self.P.copy())
+
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
         # The fix, seen from the estimate, is the innovation in metres north and east.
         e, n, _ = geodesy.enu_offset(self.x[0], self.x[1], hd, lat, lon, hd)

@@ -68,6 +68,11 @@ class GpsFixes:
             return self.site.surface_altitude_m
         return self._alt_sum / self._alt_n if self._alt_n else 0.0
 
+    def seed_altitude(self, alt: float) -> None:
+        """The water's height as the run before a restart had measured it."""
+        if self._alt_n == 0:
+            self._alt_sum, self._alt_n = alt, 1
+
     def ellipsoidal_height(self, rec: Gps) -> float | None:
         """The fix's height above the ellipsoid: the receiver's, else its MSL height
         and the site's geoid separation; None rather than an MSL height taken for it."""

@@ -12,6 +12,8 @@ tests that do not need the truth:
   which the gate refused most ranges says the filter and its ranges disagree.
 * **Covariance.**  The largest one-sigma axis of the position ellipse against
   ``degraded_std_m`` and ``lost_std_m``.
+* **Resumed.**  An estimate resumed from a checkpoint after a restart is
+  ``degraded`` until ``CONFIRM_RESUMED`` ranges have been accepted (or a GPS fix).
 * **A run of refusals.**  Ranges or GPS fixes refused in a row, however few the
   window holds (a GPS fix empties it): ``degraded_refused`` of them is degraded,
   ``lost_refused`` lost.  Each refusal says the estimate and its inputs disagree.
@@ -26,6 +28,8 @@ import math
 from collections import deque
 
 OK, DEGRADED, LOST = "ok", "degraded", "lost"
+#: accepted ranges that confirm an estimate resumed from a checkpoint
+CONFIRM_RESUMED = 3
 
 
 def chi2_quantile(p: float, dof: int) -> float:
@@ -54,6 +58,9 @@ class Integrity:
         self.degraded_refused = degraded_refused
         self.lost_refused = lost_refused
         self.refused_run = 0  # ranges or fixes refused in a row
+        # resumed from a checkpoint: degraded until ranges (or a fix) confirm it
+        self.unconfirmed: str = ""
+        self._confirming = 0
         self._ranges: deque[tuple[bool, float]] = deque(maxlen=window)
         self.reason = ""
         # what assess() needs of the window, worked out when it changes (a range) rather
@@ -66,11 +73,21 @@ class Integrity:
         """A position fix (GPS) or a restart: the ranges before it say nothing now."""
         self._ranges.clear()
         self.refused_run = 0
+        self.unconfirmed, self._confirming = "", 0
         self._summarise()
+
+    def resumed(self, why: str) -> None:
+        """The estimate came from a checkpoint, not from this run's measurements."""
+        self.clear()
+        self.unconfirmed = why
 
     def range(self, accepted: bool, nis: float) -> None:
         self._ranges.append((accepted, nis))
         self.refused_run = 0 if accepted else self.refused_run + 1
+        if accepted and self.unconfirmed:
+            self._confirming += 1
+            if self._confirming >= CONFIRM_RESUMED:
+                self.unconfirmed = ""
         self._summarise()
 
     def fix_refused(self) -> None:
@@ -104,6 +121,9 @@ class Integrity:
             return DEGRADED
         if self.refused_run >= self.degraded_refused:
             self.reason = f"{self.refused_run} ranges or fixes refused in a row"
+            return DEGRADED
+        if self.unconfirmed:
+            self.reason = self.unconfirmed
             return DEGRADED
         nis = self._nis
         if len(nis) >= 3 and sum(nis) > self._nis_limit:

@@ -51,6 +51,7 @@ from navd.records import (
     Range,
     Record,
     Reset,
+    Resume,
     Rpm,
     SetBeacon,
     Tick,
@@ -82,9 +83,17 @@ def make_filter(cfg: Config) -> NavFilter:
 
 class Navigator:
     def __init__(self, cfg: Config, keep_history: bool = False) -> None:
-        nav = cfg.navigation
         self.cfg = cfg
-        self.nav = nav
+        self.nav = cfg.navigation
+        self.counters: Counter[str] = Counter()
+        self._smoothed_done: list[dict[str, Any]] = []
+        self._fresh(keep_history)
+
+    def _fresh(self, keep_history: bool) -> None:
+        """Everything a new process knows before its first record (counters and the
+        smoother's finished segments are the run's, and stay)."""
+        cfg = self.cfg
+        nav = self.nav
         self.filter: NavFilter = make_filter(cfg)
         self.filter.history.enabled = keep_history
         self.dr = DeadReckoner()
@@ -106,7 +115,6 @@ class Navigator:
         self.decl = math.radians(nav.magnetic_declination_deg)
         self.deviation = tuple(nav.compass_deviation_deg)
         self.tick_dt = 1.0 / nav.rate_hz
-        self.counters: Counter[str] = Counter()
         ig = nav.integrity
         self.integrity = Integrity(
             ig.window, ig.degraded_std_m, ig.lost_std_m, ig.degraded_refused, ig.lost_refused
@@ -124,7 +132,6 @@ class Navigator:
         self.gps = GpsFixes(nav, cfg.site)
         self.gps_gate = GpsGate(nav.gate.gps_chi2, nav.gate.gps_agree)
         self._tick_steps: list[tuple[int, Estimate]] = []
-        self._smoothed_done: list[dict[str, Any]] = []
 
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[dict[str, Any]]:
@@ -132,6 +139,13 @@ class Navigator:
         if isinstance(rec, Tick):
             # the log rounds a tick's time to 1 ns; k * dt may lie a hair above it
             return self.advance(rec.t + _TICK_SLACK_S)
+        if isinstance(rec, Resume):
+            # the daemon started again: no ticks were taken while it was down
+            if implausible(rec) is None:
+                self._on_resume(rec)
+            else:
+                self.counters["skipped_implausible"] += 1
+            return []
         why = implausible(rec)
         if why is not None:
             # the decoders and the log reader refuse these already; records made by
@@ -198,6 +212,59 @@ class Navigator:
             return
         known = table.get(rec.beacon, Beacon())
         table[rec.beacon] = replace(known, lat=rec.lat, lon=rec.lon, depth=rec.depth)
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """What a restart needs to resume navigating (None: nothing to resume yet): the
+        filter's state and covariance, the depth gauge's zero, the water's height."""
+        f = self.filter
+        if not f.initialised:
+            return None
+        x = np.asarray(f.x, dtype=float)
+        return {
+            "mode": self.cfg.navigation.filter,
+            "x": x.tolist(),
+            "P": np.asarray(f.P, dtype=float).ravel().tolist(),
+            "surface_bar": self.depth.zero_bar,
+            "surface_alt": self.surface_altitude,
+            "depth_m": self.depth.m,
+            "lat": math.degrees(float(x[0])),
+            "lon": math.degrees(float(x[1])),
+        }
+
+    def _on_resume(self, rec: Resume) -> None:
+        """Navigate on from a checkpoint: navd restarted (a crash, the watchdog) while
+        the vehicle was away from GPS.  Its position covariance grows with the time
+        the daemon was down, and integrity is degraded until ranges confirm it."""
+        n = len(rec.x)
+        # a new process: what the one before knew is gone (a replay of its log goes on
+        # from here as the daemon did)
+        keep = self.filter.history.enabled
+        if keep:
+            self._smoothed_done.extend(self._smooth_segment())
+        self._fresh(keep)
+        if rec.mode != self.cfg.navigation.filter or n != len(np.asarray(self.filter.x)):
+            self.counters["resume_refused_mode"] += 1
+            return
+        x = np.array(rec.x, dtype=float)
+        P = np.array(rec.P, dtype=float).reshape(n, n)
+        if not np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) >= -1e-9):
+            self.counters["resume_refused_covariance"] += 1
+            return
+        grow = (self.cfg.checkpoint.drift_mps * rec.age_s) ** 2
+        self.filter.initialise(float(x[0]), float(x[1]), 1.0, rec.t)
+        self.filter.restore(x, P, grow)
+        self._t_filter = rec.t
+        self.dr.reset(float(x[0]), float(x[1]))
+        if rec.surface_bar is not None:
+            self.depth.zero_at(rec.surface_bar)
+        if rec.surface_alt is not None:
+            self.gps.seed_altitude(rec.surface_alt)
+        if rec.depth_m is not None:
+            self.depth.depth(rec.t, rec.depth_m)
+        self.integrity.resumed(
+            f"resumed from a checkpoint {rec.age_s:.0f} s old, not yet confirmed by ranges"
+        )
+        self.counters["resumed"] += 1
 
     def advance(self, t: float) -> list[dict[str, Any]]:
         """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,

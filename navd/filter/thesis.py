@@ -140,6 +140,14 @@ class ThesisEKF:
         self.initialised = True
         self.history.add(t, np.eye(4), self.x.copy(), self.P.copy())
 
+    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+        # the thesis' covariance is in radians squared: the growth is converted there
+        self.x, self.P = x.copy(), P.copy()
+        pn, pe = metres_to_rad2(float(x[0]), grow_m2, grow_m2)
+        self.P[0, 0] += pn
+        self.P[1, 1] += pe
+        self.history.correct(self.x.copy(), self.P.copy())
+
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
         # Algorithm 2 line 14: "return position of AUV and update P".
         self.x[0], self.x[1] = lat, lon

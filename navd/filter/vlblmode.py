@@ -38,6 +38,10 @@ class VlblMode:
         self.t = t
         self.history.add(t, np.eye(2), self.x.copy(), self.P.copy())
 
+    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+        self.x, self.P = x.copy(), P + np.eye(2) * grow_m2
+        self.history.correct(self.x.copy(), self.P.copy())
+
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
         self.x = np.array([lat, lon])
         self.P = np.eye(2) * std_m**2

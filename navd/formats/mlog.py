@@ -30,6 +30,7 @@ from navd.records import (
     Range,
     Record,
     Reset,
+    Resume,
     Rpm,
     SetBeacon,
     Tick,
@@ -129,6 +130,32 @@ def _parse_gps(o: dict, t: float) -> Gps:
     )
 
 
+def _numbers(obj: dict, key: str, max_len: int = 256) -> tuple[float, ...]:
+    v = obj.get(key)
+    if not isinstance(v, list) or not v or len(v) > max_len:
+        raise _Bad(f"field '{key}' must be a list of at most {max_len} numbers")
+    out = []
+    for a in v:
+        if isinstance(a, bool) or not isinstance(a, int | float) or not math.isfinite(a):
+            raise _Bad(f"field '{key}' must hold finite numbers")
+        out.append(float(a))
+    return tuple(out)
+
+
+def _parse_resume(o: dict, t: float) -> Resume:
+    mode = o.get("mode")
+    if mode not in ("default", "thesis", "vlbl"):
+        raise _Bad("field 'mode' must be default, thesis or vlbl")
+    x = _numbers(o, "x", 16)
+    P = _numbers(o, "P", 256)
+    if len(P) != len(x) ** 2:
+        raise _Bad("field 'P' must hold len(x) squared numbers")
+    return Resume(
+        t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
+        _opt(o, "depth_m"),
+    )
+
+
 def _parse_range(o: dict, t: float) -> Range:
     return Range(
         t,
@@ -156,6 +183,7 @@ _PARSERS: dict[str, Callable[[dict, float], Record]] = {
     "depth": lambda o, t: Depth(t, _num(o, "m")),
     "pressure": lambda o, t: Pressure(t, _num(o, "bar")),
     "gps": _parse_gps,
+    "cmd_resume": _parse_resume,
     "range": _parse_range,
     "travel_time": _parse_tt,
     "velocity": lambda o, t: Velocity(t, _num(o, "u"), _num(o, "v"), _num(o, "w")),

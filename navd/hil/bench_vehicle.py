@@ -81,9 +81,13 @@ class BenchVehicle:
         faults: Path | None = None,
         vehicle: str = "sim690s",
         connect: list[str] | None = None,
+        state_dir: Path | None = None,
     ) -> None:
+        """``state_dir``: keep the daemon's checkpoint there (systemd's StateDirectory)."""
         self.dir = d
         self.config = d / "navd.yaml"
+        self.navd_stderr = navd_stderr
+        self.site: list[str] = []
         self.port = free_port()
         args = [str(BIN / "navd-hil"), "demo", "--dir", str(d), "--zenoh-port", str(self.port)]
         args += ["--vehicle", vehicle]
@@ -100,13 +104,32 @@ class BenchVehicle:
             if not (d / "clock.json").exists():
                 raise RuntimeError(f"navd-hil did not start: {self.banner}")
             self.t0_monotonic = jsonlines.loads((d / "clock.json").read_bytes())["t0_monotonic"]
-            self.navd = subprocess.Popen(
-                [str(BIN / "navd"), "run", "--config", str(self.config)], stderr=navd_stderr
-            )
+            if state_dir is not None:
+                state_dir.mkdir(parents=True, exist_ok=True)
+                site = d / "state.yaml"
+                site.write_text(f"checkpoint: {{dir: '{state_dir}'}}\n")
+                self.site = ["--site", str(site)]
+            self.navd = self._start_navd()
             self._procs.insert(0, self.navd)
         except BaseException:
             self.kill()  # never leave an emulator running behind a failed start
             raise
+
+    def _start_navd(self) -> subprocess.Popen:
+        return subprocess.Popen(
+            [str(BIN / "navd"), "run", "--config", str(self.config), *self.site],
+            stderr=self.navd_stderr,
+        )
+
+    def restart_navd(self) -> None:
+        """Start the daemon again, as systemd does after a crash or the watchdog."""
+        assert self.navd.poll() is not None, "the daemon is still running"
+        self.navd = self._start_navd()
+        self._procs[0] = self.navd
+
+    def logfiles(self) -> list[Path]:
+        """Every log file of the daemon's runs, in order."""
+        return sorted((self.dir / "log").glob("*.jsonl"))
 
     def logfile(self) -> Path:
         """The daemon's log (one file: bench missions are far below the rotation size)."""

@@ -1,0 +1,111 @@
+"""The navigation state on disk, once a second, for a restart while submerged.
+
+systemd restarts navd when the watchdog fires or it crashes; without this the
+restarted daemon would wait for a GPS fix, blind for the rest of the dive.  The
+file is small JSON, replaced atomically (written beside it, flushed, renamed over
+it), in systemd's ``StateDirectory`` (``/var/lib/navd``).  On start, a checkpoint
+of this vehicle and this navigation config, younger than ``checkpoint.max_age_s``,
+is resumed (navd/filter/navigator.py, ``Resume``); anything else is passed over
+with one line saying why.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import os
+import time
+import typing
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from navd import files
+from navd.config import Config
+from navd.formats import jsonlines
+
+FORMAT = "navd-checkpoint"
+VERSION = 1
+NAME = "checkpoint.json"
+MAX_BYTES = 64 * 1024
+
+
+def checkpoint_dir(cfg: Config, env: typing.Mapping[str, str]) -> Path | None:
+    """``checkpoint.dir``, else systemd's StateDirectory, else none (a development run)."""
+    d = cfg.checkpoint.dir or env.get("STATE_DIRECTORY", "").split(":")[0]
+    return Path(d) if d else None
+
+
+def config_digest(cfg: Config) -> str:
+    """What a checkpoint must have been made under: the navigation config and beacons."""
+    doc = {
+        "navigation": dataclasses.asdict(cfg.navigation),
+        "beacons": {k: dataclasses.asdict(b) for k, b in sorted(cfg.beacons.items())},
+    }
+    return hashlib.sha256(jsonlines.dumps(doc)).hexdigest()[:16]
+
+
+class Checkpoints:
+    def __init__(
+        self, directory: Path, vehicle: str, digest: str, wall: Callable[[], float] = time.time
+    ) -> None:
+        self.path = directory / NAME
+        self.vehicle = vehicle
+        self.digest = digest
+        self.wall = wall
+        self.written = 0
+        self.errors = 0
+        self.last_error = ""
+
+    def write(self, snapshot: dict[str, Any]) -> bool:
+        doc = {
+            "format": FORMAT,
+            "version": VERSION,
+            "vehicle": self.vehicle,
+            "config": self.digest,
+            "utc": self.wall(),
+            **snapshot,
+        }
+        tmp = self.path.with_name(NAME + ".part")
+        try:
+            with open(tmp, "wb") as fh:
+                fh.write(jsonlines.dumps(doc))
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, self.path)
+        except OSError as exc:  # a full or read-only disk: said in health, navigation goes on
+            self.errors += 1
+            self.last_error = f"{exc.strerror or exc.__class__.__name__}"
+            return False
+        self.written += 1
+        return True
+
+    def load(self, max_age_s: float) -> tuple[dict[str, Any] | None, str]:
+        """The checkpoint to resume, with its ``age_s``, or None and one line why not
+        (empty when there is none at all)."""
+        if not self.path.exists():
+            return None, ""
+        try:
+            doc = jsonlines.loads(files.read_regular(self.path, MAX_BYTES))
+        except files.FileRefused as exc:
+            return None, f"checkpoint ignored: {exc}"
+        except jsonlines.DecodeError:
+            return None, f"checkpoint ignored: {self.path}: not JSON"
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            return None, f"checkpoint ignored: {self.path}: not a navd checkpoint"
+        if doc.get("version") != VERSION:
+            return None, f"checkpoint ignored: {self.path}: version {doc.get('version')!r:.10}"
+        if doc.get("vehicle") != self.vehicle:
+            return None, f"checkpoint ignored: of another vehicle ({str(doc.get('vehicle'))[:32]})"
+        if doc.get("config") != self.digest:
+            return None, "checkpoint ignored: made under another navigation config"
+        utc = doc.get("utc")
+        if isinstance(utc, bool) or not isinstance(utc, int | float) or not math.isfinite(utc):
+            return None, f"checkpoint ignored: {self.path}: no time"
+        age = self.wall() - utc
+        if age < -1.0:
+            return None, f"checkpoint ignored: from {-age:.0f} s in the future (the clock?)"
+        if age > max_age_s:
+            return None, f"checkpoint ignored: {age:.0f} s old (checkpoint.max_age_s {max_age_s:g})"
+        return {**doc, "age_s": max(0.0, age)}, ""
