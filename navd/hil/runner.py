@@ -8,7 +8,7 @@ sensors at their times, ranges from the acoustic channel when navd pings.  The t
 goes to ``DIR/truth.jsonl``; ``DIR/clock.json`` says which monotonic time was mission
 time zero.  Faults can be scheduled with ``--faults FILE`` (YAML list of
 ``{t, device, action, value}``; actions: reconnect, disconnect, garbage, bad_checksum,
-truncate, drop_reply (value: a probability), stall, unstall, gps_off, gps_on).  One
+truncate, drop_reply (value: a probability), stall, unstall, gps_off, gps_on, glitch).  One
 line on stderr, written once the emulators serve their ports and ``clock.json``
 exists, tells a supervising script that the vehicle is up.
 """
@@ -53,6 +53,7 @@ FaultAction = Literal[
     "gps_on",
     "online",  # the modem falls into online (data) mode, as after a CONNECT
     "power_blip",  # the pressure sensor loses power and forgets its F48
+    "glitch",  # the GPS's next fixes (value: how many; default 1) at (0, 0), checksum and all
     "flood",
     "garbage",
     "bad_checksum",
@@ -61,7 +62,7 @@ FaultAction = Literal[
     "error_reply",
 ]
 _RATE_ACTIONS = ("garbage", "bad_checksum", "truncate", "drop_reply", "error_reply")
-_ONLY_ON = {"online": "modem", "power_blip": "pressure"}
+_ONLY_ON = {"online": "modem", "power_blip": "pressure", "glitch": "gps"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -244,6 +245,8 @@ class Bench:
             e.go_online()
         elif action == "power_blip":
             e.power_blip()
+        elif action == "glitch":
+            e.glitches = int(value or 1)
         elif action == "gps_off":
             return True
         elif action == "gps_on":

@@ -44,6 +44,8 @@ class GpsEmulator(Emulator):
         self.line_end = line_end
         self.second_talker = second_talker
         self.chatter = chatter
+        # a receiver's glitch: the next fix this many times at (0, 0), checksum and all
+        self.glitches = 0
         self.lat: float | None = None  # None: no fix
         self.lon: float | None = None
         self.alt_msl = 0.0
@@ -61,6 +63,9 @@ class GpsEmulator(Emulator):
             return sentence(f"{talker}GGA,{hms},,,,,0,00,99.9,,M,,M,,", self.line_end)
         la, ns = _dm(self.lat, True)
         lo, ew = _dm(self.lon, False)
+        if self.glitches > 0 and talker == "GP":
+            self.glitches -= 1
+            la, ns, lo, ew = "0000.000000", "N", "00000.000000", "E"
         return sentence(
             f"{talker}GGA,{hms},{la},{ns},{lo},{ew},1,08,{self.hdop:.1f},"
             f"{self.alt_msl:.1f},M,{self.geoid_sep:.1f},M,,",
