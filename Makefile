@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-soak bench-calibration bench-advisory clean
+	bench-robustness bench-soak bench-calibration bench-advisory bench-files clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -44,6 +44,10 @@ bench-sensitivity: $(STAMP)
 
 bench-replay: $(STAMP)
 	$(BIN)/python -m bench.replay_speed --write BENCHMARKS.md
+
+# replay and export of a mutated one-hour log against the clean one (about 5 minutes)
+bench-files: $(STAMP)
+	$(BIN)/python -m bench.mutated_logs --write BENCHMARKS.md
 
 bench-decode: $(STAMP)
 	$(BIN)/python -m bench.decode_speed --write BENCHMARKS.md

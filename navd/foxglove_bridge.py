@@ -32,12 +32,12 @@ class Bridge:
     ):
         import foxglove
 
+        # the zenoh file first: a bad one is a one-line error before anything is served
+        zcfg = read_zenoh_file(zenoh_file, "--zenoh-config") if zenoh_file else None
         self._fg = foxglove
         self.ctx = foxglove.Context()
         self.server = foxglove.start_server(name="navd", host=host, port=port, context=self.ctx)
-        self.session = open_session(
-            connect, read_zenoh_file(zenoh_file, "--zenoh-config") if zenoh_file else None
-        )
+        self.session = open_session(connect, zcfg)
         self._lock = threading.Lock()
         self._channels: dict[str, Any] = {}
         self.messages = 0

@@ -120,6 +120,8 @@ class DeviceHealth:
     last_device_error: str
     info: dict[str, Any]  # what the device said of itself: firmware, serial number, ...
     internal_errors: dict[str, int]
+    # what the decoder skipped or could not use, by reason and sentence type
+    decode_reasons: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(slots=True)

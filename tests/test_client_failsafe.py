@@ -290,3 +290,25 @@ def test_navd_watch_takes_a_zenoh_file_under_the_shipped_access_control(tmp_path
         th.join(5)
         pub.close()
         loop.close()
+
+
+def test_navd_foxglove_reads_its_zenoh_file_as_the_others_do(tmp_path) -> None:
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "navd",
+            "foxglove",
+            "--zenoh-config",
+            str(tmp_path / "nope.json5"),
+            "--seconds",
+            "1",
+            "--port",
+            str(_free_port()),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "--zenoh-config" in r.stderr and "nope.json5" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

@@ -23,6 +23,7 @@ from navd.analysis.replay import run_navigator
 from navd.config import ConfigError, config_from_dict, load_config
 from navd.formats import jsonlines
 from navd.formats.mlog import HOLD_LINES, LogError, read_measurement_log, record_to_json
+from navd.hil.mutate import JUMPS, KINDS, mutate, set_t
 from navd.records import MAX_BEACONS, SetBeacon
 
 HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'
@@ -144,12 +145,6 @@ def _replay(p: Path) -> tuple[list, list]:
     return log.records, res.outputs
 
 
-def _set_t(line: str, t: float) -> str:
-    obj = jsonlines.loads(line)
-    obj["t"] = t
-    return jsonlines.dumps_line(obj)
-
-
 def _measurement_indices(lines: list[str]) -> list[int]:
     return [i for i, ln in enumerate(lines) if '"estimate"' not in ln]
 
@@ -159,8 +154,8 @@ def test_two_lines_far_in_the_future_cost_only_themselves(tmp_path: Path) -> Non
     clean, _ = _replay(_write(tmp_path, lines, "clean.jsonl"))
     i = _measurement_indices(lines)[len(lines) // 3]
     bad = list(lines)
-    bad[i] = _set_t(bad[i], 1e6)
-    bad[i + 1] = _set_t(bad[i + 1], 1e6 + 0.1)
+    bad[i] = set_t(bad[i], 1e6)
+    bad[i + 1] = set_t(bad[i + 1], 1e6 + 0.1)
     log = read_measurement_log(_write(tmp_path, bad))
     assert len(log.skipped) == 2 and len(log.records) == len(clean) - 2
 
@@ -174,7 +169,7 @@ def test_a_tick_far_in_the_future_loses_nothing_and_does_not_hang(
     ticks = [i for i, ln in enumerate(lines) if '"estimate"' in ln]
     i = ticks[len(ticks) // 2]
     bad = list(lines)
-    bad[i] = _set_t(bad[i], min(1e9, jsonlines.loads(bad[i])["t"] + ahead))
+    bad[i] = set_t(bad[i], min(1e9, jsonlines.loads(bad[i])["t"] + ahead))
     t0 = time.perf_counter()
     recs, out = _replay(_write(tmp_path, bad))
     assert time.perf_counter() - t0 < 30.0
@@ -223,6 +218,17 @@ def test_beacon_commands_in_a_log_have_the_live_limits_in_linear_time(tmp_path: 
 
 # -- random mutations of a real log ----------------------------------------------------
 _LINES = None
+_CLEAN: tuple[list, float] | None = None
+
+
+def _clean_replay(tmp: Path) -> tuple[list, float]:
+    global _CLEAN
+    if _CLEAN is None:
+        p = _write(tmp, _base(), "clean.jsonl")
+        t0 = time.perf_counter()
+        recs, _ = _replay(p)
+        _CLEAN = (recs, time.perf_counter() - t0)
+    return _CLEAN
 
 
 def _base() -> list[str]:
@@ -233,45 +239,8 @@ def _base() -> list[str]:
 
 
 _MUTATION = st.tuples(
-    st.sampled_from(["flip", "duplicate", "swap", "delete", "time", "truncate"]),
-    st.floats(0.0, 1.0),
-    st.integers(0, 255),
-    st.sampled_from([-1e9, -3600.0, -5.0, -0.5, 0.3, 2.0, 50.0, 1e4, 1e9]),
+    st.sampled_from(KINDS), st.floats(0.0, 1.0), st.integers(0, 255), st.sampled_from(JUMPS)
 )
-
-
-def _mutate(lines: list[str], muts: list) -> tuple[bytes, int, bool]:
-    """The mutated file's bytes, the lines touched, and whether the end was cut."""
-    out = list(lines)
-    touched = 0
-    cut = False
-    for kind, where, byte, dt in muts:
-        i = min(len(out) - 2, int(where * (len(out) - 1)))
-        if kind == "flip":
-            b = bytearray(out[i].encode())
-            j = int(where * 997) % max(1, len(b) - 1)
-            b[j] = byte
-            out[i] = b.decode("utf-8", errors="surrogateescape")
-            touched += 1 if byte != 10 else 2
-        elif kind == "duplicate":
-            out.insert(i, out[i])
-            touched += 1
-        elif kind == "swap":
-            out[i], out[i + 1] = out[i + 1], out[i]
-            touched += 2
-        elif kind == "delete":
-            del out[i]
-            touched += 1
-        elif kind == "time":
-            t = jsonlines.loads(out[i])["t"]
-            out[i] = _set_t(out[i], max(-1e9, min(1e9, t + dt)))
-            touched += 1
-        else:
-            touched += len(out) - i
-            out = out[:i] + [out[i][: len(out[i]) // 2]]
-            cut = True
-    data = "".join(out).encode("utf-8", errors="surrogateescape")
-    return data, touched, cut
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -279,11 +248,8 @@ def _mutate(lines: list[str], muts: list) -> tuple[bytes, int, bool]:
 def test_mutated_logs_never_raise_never_hang_and_lose_only_what_they_touch(tmp_path_factory, muts):
     tmp = tmp_path_factory.mktemp("mut")
     lines = _base()
-    clean_p = _write(tmp, lines, "clean.jsonl")
-    t0 = time.perf_counter()
-    clean, _ = _replay(clean_p)
-    t_clean = time.perf_counter() - t0
-    data, touched, _ = _mutate(lines, muts)
+    clean, t_clean = _clean_replay(tmp)
+    data, touched = mutate(lines, muts)
     p = _write(tmp, data)
     t0 = time.perf_counter()
     recs, _ = _replay(p)

@@ -155,3 +155,30 @@ def test_a_fix_naming_no_satellite_and_no_hdop_is_not_full_weight():
     assert fix_std(3.0, rec.hdop, rec.quality, rec.sats, 10.0) == pytest.approx(30.0)
     assert fix_std(3.0, 1.3, 2, 0, 10.0) == pytest.approx(3.9)  # an HDOP says the geometry
     assert fix_std(3.0, None, 1, None, 10.0) == pytest.approx(3.0)  # a log without sats
+
+
+def test_what_the_receiver_says_beyond_fixes_is_counted_in_health():
+    import time
+
+    from navd.config import GpsDevice
+    from navd.daemon.devices.gps import GpsReceiver
+    from navd.daemon.health import Vitals
+
+    class Host:
+        vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
+        fed: list = []
+
+        def clock(self) -> float:
+            return time.monotonic()
+
+        def feed(self, rec) -> None:
+            self.fed.append(rec)
+
+    host = Host()
+    dev = GpsReceiver(GpsDevice(port="/dev/null"), host)  # type: ignore[arg-type]
+    data = (Path(__file__).parent / "data" / "gpsd" / "sirfstarv-nmea.log").read_bytes()
+    for rec in dev.decoder.feed(data, 0.0):
+        dev.handle(rec)
+    h = dev.health(time.monotonic())
+    assert h.decode_reasons["duplicate_epoch"] == 59  # GL's GGA of each epoch
+    assert sum(isinstance(r, Gps) and r.lat is not None for r in host.fed) == 59

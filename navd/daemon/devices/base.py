@@ -140,6 +140,7 @@ class Device:
             last_device_error=self.last_device_error,
             info=dict(self.info),
             internal_errors=dict(hl.internal_errors) if hl else {},
+            decode_reasons=dict(stats.reasons),
         )
 
     def problems(self, now: float, h: DeviceHealth) -> list[str]:
