@@ -50,16 +50,32 @@ class Answer:
     error: str = ""
 
 
-def open_session(connect: list[str] | None = None, config: zenoh.Config | None = None):
+#: how long a client keeps trying to reach navd (or the router) when it opens
+OPEN_WAIT_S = 10.0
+
+
+def open_session(
+    connect: list[str] | None = None,
+    config: zenoh.Config | None = None,
+    wait_s: float = OPEN_WAIT_S,
+):
     """A zenoh client of ``connect`` (the daemon, or a router), with scouting off.
 
     A client talks only to what it connects to: everything it receives on navd's keys
     has passed the access control of navd's session (or the router's).  A peer would
-    also connect to any peer that gossip told it of, and take what that one put."""
+    also connect to any peer that gossip told it of, and take what that one put.  It
+    keeps trying to connect for ``wait_s`` (a tool started before navd), unless its
+    zenoh file says otherwise, then raises ``zenoh.ZError``."""
     cfg = config or zenoh.Config()
     cfg.insert_json5("mode", '"client"')
     cfg.insert_json5("scouting/multicast/enabled", "false")
     cfg.insert_json5("scouting/gossip/enabled", "false")
+    try:
+        given = jsonlines.loads(cfg.get_json("connect/timeout_ms"))
+    except Exception:  # zenoh raises for a key that is not set
+        given = None
+    if given is None:
+        cfg.insert_json5("connect/timeout_ms", str(int(wait_s * 1000)))
     if connect:
         cfg.insert_json5("connect/endpoints", jsonlines.dumps(list(connect)).decode())
     return zenoh.open(cfg)
@@ -146,10 +162,12 @@ class NavClient:
         config: zenoh.Config | None = None,
         config_file: str | None = None,
         stale_s: float = 1.0,
+        open_wait_s: float = OPEN_WAIT_S,
     ) -> None:
         """``config`` or ``config_file``: a zenoh config (the user and password of
         config/zenoh.json5's access control, TLS); ``session``: an open session to
-        share.  ``stale_s``: an estimate older than this is no position (10 Hz: 1 s)."""
+        share.  ``stale_s``: an estimate older than this is no position (10 Hz: 1 s).
+        ``open_wait_s``: how long to keep trying to reach navd at the start."""
         self.vehicle = vehicle
         self.prefix = f"auv/{vehicle}/nav"
         self.timeout_s = timeout_s
@@ -160,7 +178,7 @@ class NavClient:
         self._own = session is None
         if session is None:
             try:
-                session = open_session(connect, config)
+                session = open_session(connect, config, open_wait_s)
             except zenoh.ZError as exc:
                 who = f"user '{self.user}'" if self.user else "no user (none configured)"
                 raise NavUnavailable(
