@@ -268,7 +268,7 @@ class LogConfig:
 
 @dataclass(frozen=True, slots=True)
 class CheckpointConfig:
-    """The navigation state kept on disk, for a restart while submerged (filter/resume.py)."""
+    """The navigation state kept on disk, for a restart while submerged (daemon/checkpoint.py)."""
 
     # empty: $STATE_DIRECTORY under systemd (StateDirectory=navd: /var/lib/navd); with
     # neither, no checkpoint is kept (a development run)

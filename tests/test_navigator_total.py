@@ -22,6 +22,7 @@ from navd.records import (
     Pressure,
     Range,
     Reset,
+    Resume,
     Rpm,
     SetBeacon,
     TravelTime,
@@ -47,7 +48,7 @@ opt_pos = st.one_of(st.none(), near)
 
 @st.composite
 def record(draw: st.DrawFn, t: float) -> object:
-    kind = draw(st.integers(0, 11))
+    kind = draw(st.integers(0, 12))
     if kind == 0:
         return Heading(t, draw(small))
     if kind == 1:
@@ -86,6 +87,23 @@ def record(draw: st.DrawFn, t: float) -> object:
         return Velocity(t, draw(small), draw(small), draw(small))
     if kind == 10:
         return SetBeacon(t, draw(beacon_name), LAT0 + draw(near), LON0 + draw(near), 0.0)
+    if kind == 11:
+        # a restart's checkpoint: any mode, any shape, any covariance (negative, singular)
+        n = draw(st.sampled_from([2, 4, 8, 3]))
+        x = [math.radians(LAT0) + draw(near), math.radians(LON0) + draw(near)]
+        x += [draw(small) for _ in range(n - 2)]
+        P = [draw(small) for _ in range(draw(st.sampled_from([n * n, n, 4])))]
+        mode = draw(st.sampled_from(["default", "thesis", "vlbl"]))
+        return Resume(
+            t,
+            mode,
+            tuple(x),
+            tuple(P),
+            draw(st.floats(0.0, 1e4)),
+            None,
+            None,
+            draw(st.one_of(st.none(), st.floats(-1.0, 50.0))),
+        )
     return Reset(t)
 
 

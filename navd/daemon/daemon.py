@@ -433,8 +433,12 @@ class Daemon:
             return
         self.feed(rec)  # logged as cmd_resume: a replay of the log resumes the same
         if self.nav.counters.get("resumed"):
-            self.resumed = {"t": t, "age_s": round(rec.age_s, 1), "lat": snap.get("lat"),
-                            "lon": snap.get("lon")}
+            self.resumed = {
+                "t": t,
+                "age_s": round(rec.age_s, 1),
+                "lat": _number_or_none(snap.get("lat")),
+                "lon": _number_or_none(snap.get("lon")),
+            }
             log.info("resumed navigation from a checkpoint %.0f s old", rec.age_s)
         else:
             log.warning("checkpoint ignored: the filter refused it (%s)", dict(self.nav.counters))
@@ -444,9 +448,10 @@ class Daemon:
             return
         while True:
             await asyncio.sleep(self.cfg.checkpoint.every_s)
-            snap = self.nav.snapshot()
+            snap = self.nav.snapshot()  # taken here, between two ticks: one consistent state
             if snap is not None:
-                self.checkpoints.write(snap)
+                # the write ends in an fsync, which an SD card can take 100 ms over
+                await asyncio.to_thread(self.checkpoints.write, snap)
 
     async def run(self, stop: asyncio.Event) -> None:
         loop = asyncio.get_running_loop()

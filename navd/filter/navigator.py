@@ -245,6 +245,9 @@ class Navigator:
         if rec.mode != self.cfg.navigation.filter or n != len(np.asarray(self.filter.x)):
             self.counters["resume_refused_mode"] += 1
             return
+        if len(rec.P) != n * n:
+            self.counters["resume_refused_covariance"] += 1
+            return
         x = np.array(rec.x, dtype=float)
         P = np.array(rec.P, dtype=float).reshape(n, n)
         if not np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) >= -1e-9):
