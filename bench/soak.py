@@ -28,6 +28,7 @@ autopilot's client saw of the forgeries, and how its commands were answered.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -139,6 +140,12 @@ def _f(device: str, action: str, value: float | int | None = None) -> dict:
     if value is not None:
         d["value"] = value
     return d
+
+
+def _sample(samples: dict[str, tuple[float, int]], pid: int) -> None:
+    """The first-minute sample of a restarted daemon (unless it was restarted again)."""
+    with contextlib.suppress(OSError):  # restarted again meanwhile
+        samples["start"] = _rss_fds(pid)
 
 
 def _rss_fds(pid: int) -> tuple[float, int]:
@@ -400,6 +407,7 @@ def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
     samples: dict[str, tuple[float, int]] = {}
     events: dict[str, dict] = {}
     pilot = None
+    sampler = None
     try:
         time.sleep(5.0)
         pilot = _Autopilot(zport)
@@ -432,9 +440,10 @@ def run(minutes: float, work: Path, spacing: float = 40.0) -> str:
                 # memory is compared within one process: the last one, from its first minute
                 import threading
 
-                threading.Timer(
-                    60.0, lambda pid=navd.pid: samples.__setitem__("start", _rss_fds(pid))
-                ).start()
+                if sampler is not None:
+                    sampler.cancel()
+                sampler = threading.Timer(60.0, _sample, (samples, navd.pid))
+                sampler.start()
             elif f.device == "forge":
                 _sleep_until(t0 + f.start)
                 before = (pilot.forged, pilot.latest_forged)
