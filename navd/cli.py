@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from navd.config import ConfigError, load_config
 from navd.formats.mlog import LogError
@@ -27,9 +28,23 @@ def _config(args: argparse.Namespace, attr: str = "config"):
     return load_config(getattr(args, attr), getattr(args, "site", None) or ())
 
 
+def _refuse_overwriting(inputs: list[str], outputs: list[str | None]) -> None:
+    """No command writes over a file it reads: said before anything is read."""
+    for out in outputs:
+        if out is None:
+            continue
+        for given in inputs:
+            same = Path(out).resolve() == Path(given).resolve()
+            if not same and Path(out).exists() and Path(given).exists():
+                same = os.path.samefile(out, given)
+            if same:
+                raise ConfigError(f"--out {out}: is the input {given}; write elsewhere")
+
+
 def _cmd_replay(args: argparse.Namespace) -> int:
     from navd.analysis.replay import replay
 
+    _refuse_overwriting(list(args.input), [args.out])
     cfg = _config(args)
     replay(list(args.input), cfg, args.out, smooth=args.smooth, strict=args.strict)
     return 0
@@ -59,6 +74,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if not (args.gpx or args.kml or args.csv or args.mcap):
         print("navd: export: say what to write: --gpx, --kml, --csv and/or --mcap", file=sys.stderr)
         return 2
+    _refuse_overwriting(list(args.log), [args.gpx, args.kml, args.csv, args.mcap])
     mission = load_mission(list(args.log), _config(args), smooth=args.smooth)
     if not mission.estimates:
         print(
@@ -182,6 +198,8 @@ def _cmd_capture(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from navd.analysis.calibrate import CalibrationError, fit, stretches, supports_offset
     from navd.formats.mlog import read_measurement_log
+
+    _refuse_overwriting(list(args.log), [args.out])
 
     cfg = _config(args)
     nav = cfg.navigation

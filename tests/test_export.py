@@ -84,3 +84,48 @@ def test_mcap_holds_what_the_log_holds(exported: Path) -> None:
     assert counts["/sensors/rpm"] == by_type["rpm"]
     assert counts["/sensors/range"] == counts["/nav/range"] == by_type["range"]
     assert counts["/nav/log"] >= 3  # mode changes, integrity, the surfacing
+
+
+def test_a_daemon_logs_ticks_export_to_mcap(tmp_path: Path) -> None:
+    """A daemon's own log holds its ticks (estimate lines): they are steps, not readings."""
+    from navd.formats import jsonlines
+    from navd.formats.mlog import record_to_json
+
+    d = tmp_path / "m"
+    m = simulate(load_scenario("demo"), 1)
+    write_mission(m, d)
+    head = (d / "measurements.jsonl").read_text().splitlines(keepends=True)[0]
+    lines, k = [head], 1
+    for rec in m.records:
+        while k * 0.1 < rec.t:
+            lines.append(jsonlines.dumps_line({"type": "estimate", "t": round(k * 0.1, 9)}))
+            k += 1
+        lines.append(jsonlines.dumps_line(record_to_json(rec)))
+    log = tmp_path / "navd-daemon.jsonl"
+    log.write_text("".join(lines))
+    r = subprocess.run(
+        [sys.executable, "-m", "navd", "export", str(log), "--config", str(d / "config.yaml"),
+         "--mcap", str(tmp_path / "d.mcap")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    with (tmp_path / "d.mcap").open("rb") as fh:
+        topics = Counter(ch.topic for _, ch, _ in make_reader(fh).iter_messages())
+    assert topics["/nav/estimate"] > 1000 and "/sensors/heading" in topics
+
+
+@pytest.mark.parametrize("cmd", ["replay", "export", "calibrate"])
+def test_no_command_writes_over_its_input(tmp_path: Path, cmd: str) -> None:
+    write_mission(simulate(load_scenario("demo"), 1), tmp_path)
+    log = tmp_path / "measurements.jsonl"
+    before = log.read_bytes()
+    args = {
+        "replay": ["replay", str(log), "--out", str(log)],
+        "export": ["export", str(log), "--csv", str(tmp_path / "." / "measurements.jsonl")],
+        "calibrate": ["calibrate", "compass", str(log), "--out", str(log)],
+    }[cmd]
+    r = subprocess.run(
+        [sys.executable, "-m", "navd", *args], capture_output=True, text=True, timeout=120
+    )
+    assert r.returncode == 2 and "is the input" in r.stderr, r.stderr
+    assert log.read_bytes() == before

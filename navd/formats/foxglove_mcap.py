@@ -118,7 +118,8 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
         for h in m.health:
             as_json("/nav/health", h["t"], h)
         for rec in m.records:
-            as_json(f"/sensors/{TYPE_NAMES[type(rec)]}", rec.t, record_to_json(rec))
+            if type(rec) in TYPE_NAMES:  # not a daemon log's ticks: its steps, not readings
+                as_json(f"/sensors/{TYPE_NAMES[type(rec)]}", rec.t, record_to_json(rec))
 
         log = LogChannel("/nav/log", context=ctx)
         levels = {"info": LogLevel.Info, "warning": LogLevel.Warning, "error": LogLevel.Error}
