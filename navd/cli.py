@@ -7,8 +7,10 @@ error of ``navd run`` exits 78 (EX_CONFIG), on which systemd does not restart it
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
+import typing
 from pathlib import Path
 
 from navd.config import ConfigError, load_config
@@ -132,9 +134,32 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     return 0
 
 
+#: logging's levels as syslog priorities, which journald reads from a ``<N>`` prefix
+_PRIORITY = {logging.CRITICAL: 2, logging.ERROR: 3, logging.WARNING: 4, logging.INFO: 6}
+
+
+class _JournalFormatter(logging.Formatter):
+    """``<N>`` before each line: under systemd, ``journalctl -p warning`` then finds
+    every warning (sd-daemon(3), "SD_WARNING")."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record)
+        prio = _PRIORITY.get(record.levelno, 7 if record.levelno < logging.INFO else 3)
+        return "\n".join(f"<{prio}>{line}" for line in text.splitlines())
+
+
+def _log_to_stderr(env: typing.Mapping[str, str]) -> None:
+    """The daemon's log lines on stderr, with journald priorities when systemd reads it."""
+    handler = logging.StreamHandler()
+    fmt = "%(levelname)s %(name)s: %(message)s"
+    # JOURNAL_STREAM is set by systemd when stderr is the journal (systemd.exec(5))
+    journal = bool(env.get("JOURNAL_STREAM"))
+    handler.setFormatter(_JournalFormatter(fmt) if journal else logging.Formatter(fmt))
+    logging.basicConfig(level=logging.INFO, handlers=[handler])
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     import asyncio
-    import logging
     import signal
 
     from navd.config import check_for_run, default_config_path
@@ -151,7 +176,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"navd: {exc}", file=sys.stderr)
         return EX_CONFIG
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    _log_to_stderr(os.environ)
 
     def publisher(loop, on_command):
         return Publisher(cfg.zenoh, cfg.vehicle.name, loop, on_command)
@@ -182,11 +207,9 @@ def _cmd_watch(args: argparse.Namespace) -> int:
 
 
 def _cmd_capture(args: argparse.Namespace) -> int:
-    import logging
-
     from navd.daemon.capture import capture
 
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    _log_to_stderr(os.environ)
     path = capture(_config(args), args.device, args.seconds, args.out)
     if path is None:
         print(f"navd: capture: nothing written (did devices.{args.device}.port open?)")

@@ -471,6 +471,10 @@ class Daemon:
             await asyncio.sleep(0.05)
         down = [n for n, d in self.devices.items() if not d.connected]
         self.notifier.ready("navigating" + (f"; not open: {', '.join(down)}" if down else ""))
+        for name in down:  # one line each, with why: the journal is where a crew looks first
+            tr = self.devices[name].transport
+            why = (tr.health.last_error if tr else "") or "no answer yet"
+            log.warning("%s: not open (%s); retrying", name, why)
         log.info("navd running; devices not open: %s", down or "none")
         try:
             await stop.wait()
