@@ -694,8 +694,9 @@ def main() -> int:
     else:
         with tempfile.TemporaryDirectory(prefix="navd-soak-") as tmp:
             body = run(args.minutes, Path(tmp), args.spacing)
+    spacing = "" if args.spacing == 40.0 else f" --spacing {args.spacing:g}"
     report(
-        f"`python -m bench.soak --minutes {args.minutes:g}`\n\n{body}",
+        f"`python -m bench.soak --minutes {args.minutes:g}{spacing}`\n\n{body}",
         args.write,
         "bench-soak",
         "Soak",
