@@ -180,10 +180,12 @@ class NavClient:
             try:
                 session = open_session(connect, config, open_wait_s)
             except zenoh.ZError as exc:
-                who = f"user '{self.user}'" if self.user else "no user (none configured)"
+                ask = "is navd listening there"
+                if self.user:
+                    ask += f", and does it know user '{self.user}' with this password"
                 raise NavUnavailable(
                     f"cannot open a zenoh session to {', '.join(connect or []) or 'navd'}: "
-                    f"{str(exc)[:120]} (is navd listening there, and does it know {who}?)"
+                    f"{str(exc).split(' at /')[0][:120]} ({ask}?)"
                 ) from None
         self.session = session
         self._subs: list[Any] = []
