@@ -30,11 +30,24 @@ def _config(args: argparse.Namespace, attr: str = "config"):
     return load_config(getattr(args, attr), getattr(args, "site", None) or ())
 
 
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r:.20}") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be more than 0, got {text!r:.20}")
+    return v
+
+
 def _refuse_overwriting(inputs: list[str], outputs: list[str | None]) -> None:
-    """No command writes over a file it reads: said before anything is read."""
+    """No command writes over a file it reads, nor onto a directory: said before
+    anything is read."""
     for out in outputs:
         if out is None:
             continue
+        if Path(out).is_dir():
+            raise ConfigError(f"{out}: is a directory; give a file name to write")
         for given in inputs:
             same = Path(out).resolve() == Path(given).resolve()
             if not same and Path(out).exists() and Path(given).exists():
@@ -353,7 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--csv", metavar="OUT", help="one row per estimate")
     ex.add_argument("--mcap", metavar="OUT", help="MCAP with Foxglove schemas (navd[foxglove])")
     ex.add_argument(
-        "--ellipse-every", type=float, default=60.0, help="KML: a 95 %% ellipse every N s"
+        "--ellipse-every",
+        type=_positive,
+        default=60.0,
+        help="KML: a 95 %% ellipse every N s (more than 0)",
     )
     ex.set_defaults(func=_cmd_export)
 

@@ -129,3 +129,18 @@ def test_no_command_writes_over_its_input(tmp_path: Path, cmd: str) -> None:
     )
     assert r.returncode == 2 and "is the input" in r.stderr, r.stderr
     assert log.read_bytes() == before
+
+
+def test_export_refuses_a_directory_and_a_zero_ellipse_interval(tmp_path: Path) -> None:
+    write_mission(simulate(load_scenario("demo"), 1), tmp_path)
+    log = str(tmp_path / "measurements.jsonl")
+    for args, said in (
+        (["--mcap", str(tmp_path)], "is a directory"),
+        (["--kml", str(tmp_path / "m.kml"), "--ellipse-every", "0"], "must be more than 0"),
+    ):
+        r = subprocess.run(
+            [sys.executable, "-m", "navd", "export", log, *args],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert r.returncode == 2 and said in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) <= 3 and "Traceback" not in r.stderr
