@@ -261,3 +261,33 @@ def test_a_bad_command_record_names_its_line(tmp_path: Path) -> None:
     out = tmp_path / "o.jsonl"
     r = run("replay", str(log), "--out", str(out))
     assert "line 2" in r.stderr and "lat" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_the_truth_is_matched_between_its_steps(claytor: Path, tmp_path: Path) -> None:
+    """Live, the daemon's ticks fall between the simulator's steps: the report still
+    compares, by interpolation; and says so plainly when nothing could be matched."""
+    from navd.analysis.score import TruthAt
+
+    at = TruthAt([{"t": 0.0, "lat": 1.0, "lon": 2.0, "depth": 0.0, "current_n": 0.0,
+                   "current_e": 0.0},
+                  {"t": 0.1, "lat": 1.1, "lon": 2.2, "depth": 1.0, "current_n": 0.1,
+                   "current_e": 0.0},
+                  {"t": 5.0, "lat": 9.0, "lon": 9.0, "depth": 1.0, "current_n": 0.0,
+                   "current_e": 0.0}])  # fmt: skip
+    mid = at(0.05)
+    assert mid is not None and mid["lat"] == pytest.approx(1.05) and mid["depth"] == 0.5
+    assert at(2.0) is None and at(-1.0) is None  # a gap in the truth, and before it
+    out = tmp_path / "out.jsonl"
+    replay_claytor(claytor, out)
+    samples = [json.loads(x) for x in (claytor / "truth.jsonl").read_text().splitlines()]
+
+    def moved(name: str, dt: float) -> Path:
+        p = tmp_path / name
+        p.write_text("".join(json.dumps({**s, "t": s["t"] + dt}) + "\n" for s in samples))
+        return p
+
+    shifted, far = moved("truth.jsonl", 0.037), moved("far.jsonl", 1e6)
+    for truth, said in ((shifted, "against the truth, submerged: RMS"), (far, "no submerged")):
+        r = run("report", str(out), "--truth", str(truth), "--out", str(tmp_path / "rep"))
+        assert r.returncode == 0, r.stderr
+        assert said in (tmp_path / "rep" / "summary.txt").read_text()

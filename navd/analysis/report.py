@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from navd import geodesy
-from navd.analysis.score import score, surfacing_error_gps
+from navd.analysis.score import TruthAt, score, surfacing_error_gps
 from navd.filter.advisory import replayed
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
@@ -138,10 +138,10 @@ def make_report(
     ax2.plot(t, [r["std_n"] for r in est], label="1-sigma north")
     ax2.plot(t, [r["std_e"] for r in est], label="1-sigma east")
     if tru:
-        by_t = {round(s["t"], 3): s for s in tru}
+        truth_at = TruthAt(tru)
         err = []
         for r in est:
-            s = by_t.get(round(r["t"], 3))
+            s = truth_at(r["t"])
             if s is not None:
                 g = _Grid(s["lat"], s["lon"])
                 err.append((r["t"], math.hypot(*g.en(r["lat"], r["lon"]))))
@@ -187,10 +187,15 @@ def make_report(
             line += f" (last advice: steer {weak[-1].suggest_heading_deg:.0f} deg)"
         lines.append(line)
     sc = score([*est, *rng], tru) if tru else None
-    if sc is not None and math.isfinite(sc.rms_m):  # truth on the estimates' time steps
+    if sc is not None and math.isfinite(sc.rms_m):
         lines.append(
             f"against the truth, submerged: RMS {sc.rms_m:.1f} m, at surfacing "
             f"{sc.surfacing_m:.1f} m, truth inside the 95 % ellipse {sc.inside95:.0%}"
+        )
+    elif sc is not None:
+        lines.append(
+            f"against the truth: no submerged estimate falls within {truth}'s time steps "
+            "(the same mission, on the same time base?)"
         )
     last = est[-1]
     lines.append(

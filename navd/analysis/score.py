@@ -10,6 +10,7 @@ field mission has).
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -71,14 +72,44 @@ def _ne_error(lat: float, lon: float, lat_t: float, lon_t: float) -> tuple[float
     return g["s12"] * math.cos(az), g["s12"] * math.sin(az)
 
 
+#: truth samples further apart than this are not interpolated between (a gap in the truth)
+_TRUTH_MAX_STEP_S = 1.0
+_INTERPOLATED = ("lat", "lon", "depth", "current_n", "current_e")
+
+
+class TruthAt:
+    """The truth at any time within its samples: linear between the two around it.
+
+    Estimates are on the filter's ticks, truth on the simulator's steps; live, the
+    daemon's ticks fall between them (a monotonic clock against mission time), so
+    matching by equal time finds nothing."""
+
+    def __init__(self, truth: list[dict[str, Any]]) -> None:
+        self.samples = sorted(truth, key=lambda s: s["t"])
+        self.ts = [s["t"] for s in self.samples]
+
+    def __call__(self, t: float) -> dict[str, Any] | None:
+        i = bisect.bisect_left(self.ts, t)
+        if i < len(self.ts) and abs(self.ts[i] - t) < 1e-6:
+            return self.samples[i]
+        if i == 0 or i == len(self.ts):
+            return None
+        a, b = self.samples[i - 1], self.samples[i]
+        span = b["t"] - a["t"]
+        if span > _TRUTH_MAX_STEP_S:
+            return None
+        w = (t - a["t"]) / span
+        return {"t": t, **{k: a[k] + w * (b[k] - a[k]) for k in _INTERPOLATED}}
+
+
 def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
-    by_t = {round(s["t"], 3): s for s in truth}
+    truth_at = TruthAt(truth)
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
     last_sub: tuple[float, float] | None = None
     for o in outputs:
         if o.get("type") != "estimate":
             continue
-        tr = by_t.get(round(o["t"], 3))
+        tr = truth_at(o["t"])
         if tr is None or tr["depth"] < _SUBMERGED_DEPTH_M:
             continue
         dn, de = _ne_error(o["lat"], o["lon"], tr["lat"], tr["lon"])
