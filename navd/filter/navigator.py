@@ -137,6 +137,10 @@ class Navigator:
     def feed(self, rec: Record) -> list[dict[str, Any]]:
         """Consume one record; return the outputs (ticks before it, its decision)."""
         if isinstance(rec, Tick):
+            if self._tick_k is None:
+                # the first tick since a start: the daemon counted from this one (its
+                # k * dt), not from the one after it, which the slack below would give
+                self._tick_k = round(rec.t / self.tick_dt)
             # the log rounds a tick's time to 1 ns; k * dt may lie a hair above it
             return self.advance(rec.t + _TICK_SLACK_S)
         if isinstance(rec, Resume):
