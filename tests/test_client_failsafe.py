@@ -11,7 +11,6 @@ import asyncio
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import textwrap
@@ -24,14 +23,9 @@ from test_commands import Loop
 from navd.client import Gone, NavClient, NavUnavailable, NoAnswer, Stale
 from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
+from navd.hil.bench_vehicle import free_port
 
 FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _estimate(t: float) -> dict:
@@ -66,7 +60,7 @@ _CHILD = textwrap.dedent(
 
 def test_the_estimates_loop_ends_when_navd_is_killed() -> None:
     """After a kill -9 the loop of docs/zenoh.md raises within the staleness bound."""
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     child = subprocess.Popen(
         [sys.executable, "-c", _CHILD, ep],
         stdout=subprocess.PIPE,
@@ -101,7 +95,7 @@ def test_the_estimates_loop_ends_when_navd_is_killed() -> None:
 
 @pytest.fixture
 def navd() -> tuple[Publisher, str, Loop]:
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     loop = Loop()
     pub = Publisher(ZenohConfig(listen=[ep]), "t1", loop.loop, loop.on_command)
     yield pub, ep, loop
@@ -192,7 +186,7 @@ def test_wrong_credentials_and_silence_say_which(tmp_path) -> None:
     users.write_text("autopilot:pilot-secret\nobserver:watch-secret\n")
     cfg_file = tmp_path / "zenoh.json5"
     cfg_file.write_text(shipped.read_text().replace("/etc/navd/zenoh-users.txt", str(users)))
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     loop = Loop()
     pub = Publisher(
         ZenohConfig(listen=[ep], config_file=str(cfg_file)), "t1", loop.loop, loop.on_command
@@ -243,7 +237,7 @@ def test_navd_watch_takes_a_zenoh_file_under_the_shipped_access_control(tmp_path
     client_file.write_text(
         (shipped / "zenoh-client.json5").read_text().replace("set-on-the-vehicle", "watch-secret")
     )
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     cfg = tmp_path / "navd.yaml"
     cfg.write_text(f"vehicle: {{name: t1}}\nzenoh: {{listen: ['{ep}']}}\n")
     loop = Loop()
@@ -304,7 +298,7 @@ def test_navd_foxglove_reads_its_zenoh_file_as_the_others_do(tmp_path) -> None:
             "--seconds",
             "1",
             "--port",
-            str(_free_port()),
+            str(free_port()),
         ],
         capture_output=True,
         text=True,

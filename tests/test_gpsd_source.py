@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import asyncio
 import shutil
-import socket
 import subprocess
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ from navd.daemon.health import Vitals
 from navd.drivers.gps import NmeaDecoder
 from navd.drivers.gpsd import GpsdDecoder
 from navd.drivers.transport import SerialTransport
+from navd.hil.bench_vehicle import free_port
 from navd.records import Gps
 
 CAPTURE = Path(__file__).parent / "data" / "gpsd" / "ch-4711.log"
@@ -30,12 +30,6 @@ pytestmark = pytest.mark.skipif(
     shutil.which("gpsfake") is None or shutil.which("gpsd") is None,
     reason="gpsd and gpsfake (Debian: gpsd, gpsd-clients) are not installed",
 )
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class _Host:
@@ -51,7 +45,7 @@ class _Host:
 
 
 def test_gpsd_source_gives_the_serial_decoders_fixes() -> None:
-    port = _free_port()
+    port = free_port()
     fake = subprocess.Popen(
         ["gpsfake", "-q", "-1", "-P", str(port), "-c", "0.1", str(CAPTURE)],
         stdout=subprocess.DEVNULL,

@@ -23,7 +23,7 @@ from navd.daemon.checkpoint import Checkpoints, config_digest
 from navd.filter import Navigator
 from navd.formats import jsonlines
 from navd.formats.mlog import read_measurement_log, record_to_json
-from navd.hil.bench_vehicle import BenchVehicle, replay_against_live
+from navd.hil.bench_vehicle import BenchVehicle, log_objects, replay_against_live
 from navd.hil.sim_cli import crew_config
 from navd.records import Resume
 
@@ -153,28 +153,18 @@ def test_a_restart_while_submerged_resumes_within_5_s_and_replays(tmp_path: Path
         v.kill()
         stderr.close()
     first, second = v.logfiles()
-    est2 = [o for o in _objects(second) if o.get("type") == "estimate"]
+    est2 = [o for o in log_objects(second) if o.get("type") == "estimate"]
     assert est2, (tmp_path / "navd.stderr").read_text()
     assert est2[0]["t"] - t_restart < 5.0  # estimates again within 5 s, still submerged
     assert est2[0]["mode"] == "submerged" and est2[0]["integrity"] != "ok"
-    assert any(o.get("type") == "cmd_resume" for o in _objects(second))
+    assert any(o.get("type") == "cmd_resume" for o in log_objects(second))
     check = replay_against_live([first, second], v.config, tmp_path / "replayed.jsonl")
     assert check.returncode == 0, check.stderr
-    live_t = {o["t"] for f in (first, second) for o in _objects(f) if o.get("type") == "estimate"}
-    replayed_t = {o["t"] for o in _objects(tmp_path / "replayed.jsonl")}
+    objs = [o for f in (first, second) for o in log_objects(f)]
+    live_t = {o["t"] for o in objs if o.get("type") == "estimate"}
+    replayed_t = {o["t"] for o in log_objects(tmp_path / "replayed.jsonl")}
     missing = sorted(live_t - replayed_t)
-    tail = [o for o in _objects(first)][-6:]
+    tail = [o for o in log_objects(first)][-6:]
     assert check.common == check.live, (missing, t_restart, tail)
     assert check.worst < 1e-9
 
-
-def _objects(p: Path) -> list[dict]:
-    out = []
-    for line in p.read_text().splitlines():
-        try:
-            o = jsonlines.loads(line)
-        except jsonlines.DecodeError:
-            continue
-        if isinstance(o, dict):
-            out.append(o)
-    return out

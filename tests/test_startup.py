@@ -77,33 +77,34 @@ def test_values_that_would_flood_or_expose_the_vehicle_are_refused(key: str, doc
         config_from_dict(doc)
 
 
+class _QuietPub:
+    """A publisher that publishes nowhere."""
+
+    errors = 0
+    commands: dict = {}
+
+    def put(self, kind: str, body: dict) -> bytes:
+        return b""
+
+    def close(self) -> None:
+        pass
+
+
+def _no_devices(tmp_path: Path):  # noqa: ANN202 - a Config
+    devices = {n: {"enabled": False} for n in ("ahrs", "gps", "pressure", "motor", "modem")}
+    return config_from_dict({"log": {"dir": str(tmp_path / "log")}, "devices": devices})
+
+
 def test_the_daemon_navigates_while_zenoh_cannot_open(tmp_path: Path) -> None:
     attempts: list[float] = []
 
-    class Pub:
-        errors = 0
-        commands: dict = {}
-
-        def put(self, kind: str, body: dict) -> bytes:
-            return b""
-
-        def close(self) -> None:
-            pass
-
-    def factory(loop: asyncio.AbstractEventLoop, on_command: object) -> Pub:
+    def factory(loop: asyncio.AbstractEventLoop, on_command: object) -> _QuietPub:
         attempts.append(time.monotonic())
         if len(attempts) < 2:
             raise OSError("Address already in use")
-        return Pub()
+        return _QuietPub()
 
-    cfg = config_from_dict(
-        {
-            "log": {"dir": str(tmp_path / "log")},
-            "devices": {
-                n: {"enabled": False} for n in ("ahrs", "gps", "pressure", "motor", "modem")
-            },
-        }
-    )
+    cfg = _no_devices(tmp_path)
 
     async def main() -> None:
         d = Daemon(cfg, publisher_factory=factory)
@@ -198,28 +199,11 @@ def test_check_config_opens_the_zenoh_file_as_navd_run_will(tmp_path: Path, targ
 def test_the_daemon_navigates_while_zenoh_takes_long_to_open(tmp_path: Path) -> None:
     """zenoh.open blocked for seconds (a router that does not answer): in its thread."""
 
-    class Pub:
-        errors = 0
-        commands: dict = {}
-
-        def put(self, kind: str, body: dict) -> bytes:
-            return b""
-
-        def close(self) -> None:
-            pass
-
-    def factory(loop: asyncio.AbstractEventLoop, on_command: object) -> Pub:
+    def factory(loop: asyncio.AbstractEventLoop, on_command: object) -> _QuietPub:
         time.sleep(2.0)  # blocking, as zenoh.open is
-        return Pub()
+        return _QuietPub()
 
-    cfg = config_from_dict(
-        {
-            "log": {"dir": str(tmp_path / "log")},
-            "devices": {
-                n: {"enabled": False} for n in ("ahrs", "gps", "pressure", "motor", "modem")
-            },
-        }
-    )
+    cfg = _no_devices(tmp_path)
 
     async def main() -> None:
         d = Daemon(cfg, publisher_factory=factory)

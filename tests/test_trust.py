@@ -10,7 +10,6 @@ still do.
 from __future__ import annotations
 
 import json
-import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -24,6 +23,7 @@ from test_commands import Loop
 from navd.client import NavClient, NavFleet
 from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
+from navd.hil.bench_vehicle import free_port
 
 SHIPPED = Path(__file__).parent.parent / "config" / "zenoh.json5"
 _FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}
@@ -38,12 +38,6 @@ FORGED = {
 }
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _client_config(port: int, user: str, password: str) -> zenoh.Config:
     c = zenoh.Config()
     c.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
@@ -55,7 +49,7 @@ def _hostile(port: int) -> zenoh.Session:
     """An observer who configures its own session as it likes: a peer, listening."""
     c = _client_config(port, "observer", "watch-secret")
     c.insert_json5("mode", '"peer"')
-    c.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{_free_port()}"]))
+    c.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{free_port()}"]))
     c.insert_json5("scouting/multicast/enabled", "false")
     return zenoh.open(c)
 
@@ -66,7 +60,7 @@ def vehicle(tmp_path: Path) -> Iterator[tuple[Publisher, int, Loop]]:
     users.write_text("autopilot:pilot-secret\nobserver:watch-secret\n")
     cfg_file = tmp_path / "zenoh.json5"
     cfg_file.write_text(SHIPPED.read_text().replace("/etc/navd/zenoh-users.txt", str(users)))
-    port = _free_port()
+    port = free_port()
     loop = Loop()
     pub = Publisher(
         ZenohConfig(listen=[f"tcp/127.0.0.1:{port}"], config_file=str(cfg_file)),

@@ -34,6 +34,11 @@ class DecodeStats:
         self.skipped_bytes += n
         self.reasons[reason] = self.reasons.get(reason, 0) + 1
 
+    def too_long(self, n: int) -> None:
+        """A line past the longest a device sends: garbage or binary, skipped."""
+        self.skip(n, "too_long")
+        self.bad_frame += 1
+
 
 @dataclass(frozen=True, slots=True)
 class DeviceError:

@@ -50,6 +50,31 @@ class GpsTime:
     valid: bool
 
 
+class Epochs:
+    """One fix per epoch: a second report of the epoch just fused (another talker's
+    GGA, gpsd's TPV of another sentence of the cycle) within a second is a duplicate.
+    Within a second only: a receiver whose clock is stuck still gives a fix a second."""
+
+    def __init__(self, stats: DecodeStats) -> None:
+        self.stats = stats
+        self._last: tuple[str, float] | None = None
+
+    def clear(self) -> None:
+        # after a decoder fault: the failed read's fix was never delivered
+        self._last = None
+
+    def duplicate(self, epoch: str | None, t: float) -> bool:
+        last = self._last
+        if epoch is not None and last is not None and epoch == last[0] and t - last[1] < 1.0:
+            self.stats.reasons["duplicate_epoch"] = self.stats.reasons.get("duplicate_epoch", 0) + 1
+            return True
+        return False
+
+    def took(self, epoch: str | None, t: float) -> None:
+        if epoch is not None:
+            self._last = (epoch, t)
+
+
 class _Refused(Exception):
     """A sentence that framed and checked but cannot be used; the reason is counted."""
 
@@ -96,14 +121,11 @@ class NmeaDecoder:
     def __init__(self) -> None:
         self.stats = DecodeStats()
         self._buf = bytearray()
-        # the UTC field of the last GGA with a position, and its arrival
-        self._last_epoch: tuple[str, float] | None = None
+        self._epochs = Epochs(self.stats)
 
     def reset(self) -> None:
-        # the epoch goes too: the records of a read that raised were never delivered,
-        # so its fix must not be taken for a duplicate when the read is fed again
         self._buf.clear()
-        self._last_epoch = None
+        self._epochs.clear()
 
     def feed(self, data: bytes, t: float) -> list[object]:
         self.stats.bytes_in += len(data)
@@ -134,15 +156,13 @@ class NmeaDecoder:
                 continue
             if end < 0:
                 if len(buf) > _MAX_LINE:
-                    self.stats.skip(len(buf), "too_long")
-                    self.stats.bad_frame += 1
+                    self.stats.too_long(len(buf))
                     buf.clear()
                 break
             line = bytes(buf[:end])
             del buf[: end + 1]
             if len(line) > _MAX_LINE:
-                self.stats.skip(len(line), "too_long")
-                self.stats.bad_frame += 1
+                self.stats.too_long(len(line))
                 continue
             rec = self._sentence(line, t)
             if rec is not None:
@@ -228,11 +248,7 @@ class NmeaDecoder:
         lat = _coordinate(f[1], f[2], 2, 90.0, "S")
         lon = _coordinate(f[3], f[4], 3, 180.0, "W")
         epoch = f[0] or None
-        last = self._last_epoch
-        if epoch is not None and last is not None and epoch == last[0] and t - last[1] < 1.0:
-            # another talker's GGA for the epoch just fused; a receiver whose clock is
-            # stuck still gives a fix a second
-            self.stats.reasons["duplicate_epoch"] = self.stats.reasons.get("duplicate_epoch", 0) + 1
+        if self._epochs.duplicate(epoch, t):
             return None
         alt_msl = _f(f[8])
         sep = _f(f[10])
@@ -240,8 +256,7 @@ class NmeaDecoder:
         rec = Gps(t, lat, lon, alt, fix, hdop, quality, alt_msl, sep, sats)
         if implausible(rec) is not None:
             raise _Refused("implausible")
-        if epoch is not None:
-            self._last_epoch = (epoch, t)
+        self._epochs.took(epoch, t)
         return rec
 
     def _rmc(self, msg: pynmea2.RMC, t: float) -> GpsTime:

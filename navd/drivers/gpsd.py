@@ -18,7 +18,7 @@ import math
 from typing import Any
 
 from navd.drivers.codec import DecodeStats
-from navd.drivers.gps import GpsTime
+from navd.drivers.gps import Epochs, GpsTime
 from navd.formats import jsonlines
 from navd.records import Gps, implausible
 
@@ -56,11 +56,11 @@ class GpsdDecoder:
         self._buf = bytearray()
         self._hdop: float | None = None  # from the last SKY
         self._sats: int | None = None
-        self._last_epoch: tuple[str, float] | None = None
+        self._epochs = Epochs(self.stats)
 
     def reset(self) -> None:
         self._buf.clear()
-        self._last_epoch = None  # as NmeaDecoder.reset: the failed read's fix was not delivered
+        self._epochs.clear()
 
     def feed(self, data: bytes, t: float) -> list[object]:
         self.stats.bytes_in += len(data)
@@ -71,15 +71,13 @@ class GpsdDecoder:
             end = buf.find(b"\n")
             if end < 0:
                 if len(buf) > _MAX_LINE:
-                    self.stats.skip(len(buf), "too_long")
-                    self.stats.bad_frame += 1
+                    self.stats.too_long(len(buf))
                     buf.clear()
                 break
             line = bytes(buf[:end])
             del buf[: end + 1]
             if len(line) > _MAX_LINE:
-                self.stats.skip(len(line), "too_long")
-                self.stats.bad_frame += 1
+                self.stats.too_long(len(line))
                 continue
             if not line.strip():
                 continue
@@ -136,9 +134,7 @@ class GpsdDecoder:
             return out
         quality = _QUALITY_OF_STATUS.get(status, 1)
         epoch = o.get("time") if isinstance(o.get("time"), str) else None
-        last = self._last_epoch
-        if epoch is not None and last is not None and epoch == last[0] and t - last[1] < 1.0:
-            self.stats.reasons["duplicate_epoch"] = self.stats.reasons.get("duplicate_epoch", 0) + 1
+        if self._epochs.duplicate(epoch, t):
             return out
         alt_msl = _num(o, "altMSL")
         if alt_msl is None:
@@ -158,7 +154,6 @@ class GpsdDecoder:
         if implausible(rec) is not None:
             self.stats.bad("implausible")
             return out
-        if epoch is not None:
-            self._last_epoch = (epoch, t)
+        self._epochs.took(epoch, t)
         out.append(rec)
         return out

@@ -40,7 +40,7 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
         capture_output=True,
         text=True,
     )
-    live = {o["t"]: o for f in logs for o in _objects(f) if o.get("type") == "estimate"}
+    live = {o["t"]: o for f in logs for o in log_objects(f) if o.get("type") == "estimate"}
     replayed = {}
     if r.returncode == 0:
         replayed = {o["t"]: o for o in jsonlines.read(out)}
@@ -51,7 +51,7 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
     return ReplayCheck(r.returncode, r.stderr, len(live), len(common), worst)
 
 
-def _objects(path: Path) -> list[dict]:
+def log_objects(path: Path) -> list[dict]:
     """The JSON objects of a log, without a line the daemon was writing when it was cut
     short (a full disk, a kill): replay skips those too."""
     out = []
