@@ -17,25 +17,45 @@ thesis mode's final error) or an RMS current error above 0.5 m/s.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import random
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
 from navd.analysis.score import Score, read_jsonl, score
+from navd.config import load_config
+from navd.hil.bound import mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5
+
+
+#: the classes a mission is drawn in, and their weights in the draw
+CLASSES: dict[str, int] = {
+    "base": 4,  # everything drawn wide: the moving beacon, or 2 or 3 transponders
+    "wrong-prior": 2,  # the config's priors 3 to 10 times too small
+    "short-near": 1,  # short straight runs within 300 m of the beacon
+    "long-survey": 1,  # 2 to 3 hours, surfacing for GPS, a tidal stream
+    "tidal-turning": 1,  # a tidal stream that turns during the mission
+    "boat-outage": 1,  # the boat's location line down for 1 to 5 minutes
+}
+# what the draws of the base class spread the sensor errors over, as one-sigma per axis
+# (the Cramer-Rao bound's priors for the missions that draw them)
+_CURRENT_MAX_MPS = 1.0
+_BIAS_MAX_DEG = 6.0
+_RPM_ERR_MAX = 0.12
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,20 +66,14 @@ class Draw:
     drops: float
     cross_current: bool  # across the track and faster than half the vehicle's speed
     scenario: dict[str, Any]
+    cls: str = "base"
 
 
-def draw(seed: int) -> Draw:
-    """The conditions of mission ``seed``: every error drawn, none chosen."""
-    rng = random.Random(seed)
-    kind = rng.choices(["beacon", "lbl-2", "lbl-3"], weights=[3, 1, 1])[0]
-    speed = rng.uniform(1.0, 2.0)
-    duration = rng.uniform(600.0, 3600.0)
-    heading = rng.uniform(0.0, 360.0)
-    pattern = rng.choice(["straight", "lawnmower", "random"])
-    legs, t = [], 0.0
-    k = 0
+def _legs(rng: random.Random, pattern: str, heading: float, duration: float,
+          lo: float = 60.0, hi: float = 400.0) -> list[dict[str, Any]]:
+    legs, t, k = [], 0.0, 0
     while t < duration:
-        d = min(duration - t, rng.uniform(60.0, 400.0))
+        d = min(duration - t, rng.uniform(lo, hi))
         if pattern == "straight":
             h = heading + rng.uniform(-10.0, 10.0)
         elif pattern == "lawnmower":
@@ -69,17 +83,82 @@ def draw(seed: int) -> Draw:
         legs.append({"heading_deg": round(h % 360.0, 1), "duration_s": round(d, 1)})
         t += d
         k += 1
-    cur_speed = rng.uniform(0.0, 1.0)
+    return legs
+
+
+def draw(seed: int) -> Draw:
+    """The conditions of mission ``seed``: its class, then every error drawn, none chosen."""
+    rng = random.Random(seed)
+    cls = rng.choices(list(CLASSES), weights=list(CLASSES.values()))[0]
+    kind = rng.choices(["beacon", "lbl-2", "lbl-3"], weights=[3, 1, 1])[0]
+    if cls != "base":
+        kind = "beacon"
+    speed = rng.uniform(1.0, 2.0)
+    duration = rng.uniform(600.0, 3600.0)
+    heading = rng.uniform(0.0, 360.0)
+    pattern = rng.choice(["straight", "lawnmower", "random"])
+    if cls == "short-near":
+        duration = rng.uniform(300.0, 900.0)
+        pattern = "straight"
+    elif cls == "long-survey":
+        duration = rng.uniform(7200.0, 10800.0)
+        pattern = "lawnmower"
+    elif cls == "tidal-turning":
+        duration = rng.uniform(3600.0, 7200.0)
+    legs = _legs(rng, pattern, heading, duration)
+    if cls == "long-survey":
+        # up for GPS every 30 to 45 minutes, for 1 to 3 minutes
+        every = rng.uniform(1800.0, 2700.0)
+        out, t, next_up = [], 0.0, every
+        for leg in legs:
+            out.append(leg)
+            t += leg["duration_s"]
+            if t >= next_up and t < duration - 600.0:
+                out.append({**leg, "duration_s": round(rng.uniform(60.0, 180.0), 1),
+                            "depth_m": 0.0})
+                next_up = t + every
+        legs = out
+    cur_speed = rng.uniform(0.0, _CURRENT_MAX_MPS)
     cur_dir = rng.uniform(0.0, 360.0)
     across = abs(math.sin(math.radians(cur_dir - heading)))
     outliers = rng.uniform(0.0, 0.5)
     drops = rng.uniform(0.0, 0.5)
     corrupt = rng.uniform(0.0, 0.1)
     rpm_true = rng.uniform(850.0, 1000.0)
-    rpm_err = rng.uniform(-0.12, 0.12)
+    rpm_err = rng.uniform(-_RPM_ERR_MAX, _RPM_ERR_MAX)
+    bias = rng.uniform(-_BIAS_MAX_DEG, _BIAS_MAX_DEG)
+    current: dict[str, Any] = {"speed_mps": round(cur_speed, 3), "toward_deg": round(cur_dir, 1)}
+    navigation: dict[str, Any] = {}
+    if cls == "wrong-prior":
+        # errors of a real size, priors that claim 3 to 10 times less
+        cur_speed = rng.uniform(0.3, 0.8)
+        bias = rng.choice([-1, 1]) * rng.uniform(3.0, 8.0)
+        rpm_err = rng.choice([-1, 1]) * rng.uniform(0.05, 0.15)
+        current["speed_mps"] = round(cur_speed, 3)
+        k = [rng.uniform(3.0, 10.0) for _ in range(3)]
+        navigation["noise"] = {
+            "current_init_std_mps": round(cur_speed / math.sqrt(2.0) / k[0], 4),
+            "heading_bias_init_std_deg": round(abs(bias) / k[1], 3),
+            "speed_scale_init_std": round(abs(rpm_err) / k[2], 4),
+        }
+    elif cls in ("long-survey", "tidal-turning"):
+        amp = rng.uniform(0.2, 0.8)
+        period = rng.uniform(40000.0, 46000.0)  # semidiurnal
+        current["speed_mps"] = round(rng.uniform(0.0, 0.3) if cls == "long-survey" else 0.0, 3)
+        current["tidal_amplitude_mps"] = round(amp, 3)
+        current["tidal_period_s"] = round(period, 0)
+        if cls == "tidal-turning":
+            # slack water (the turn) somewhere in the middle half of the mission
+            t_slack = rng.uniform(0.25, 0.75) * duration
+            phase = -360.0 * t_slack / period + rng.choice([0.0, 180.0])
+            current["tidal_phase_deg"] = round((phase + 180.0) % 360.0 - 180.0, 2)
+        else:
+            current["tidal_phase_deg"] = round(rng.uniform(-180.0, 180.0), 1)
+        cur_speed = current["speed_mps"] + amp
+    navigation["speed"] = {"rpm_per_mps": round(rpm_true * (1 + rpm_err), 1)}
     sc: dict[str, Any] = {
         "name": f"mc-{seed}",
-        "description": "Monte Carlo draw (bench/robustness.py)",
+        "description": f"Monte Carlo draw, class {cls} (bench/robustness.py)",
         "bench": False,
         "vehicle": {
             "lat": round(rng.uniform(-60.0, 60.0), 4),
@@ -88,10 +167,10 @@ def draw(seed: int) -> Draw:
             "depth_m": round(rng.uniform(2.0, 20.0), 1),
             "legs": legs,
         },
-        "current": {"speed_mps": round(cur_speed, 3), "toward_deg": round(cur_dir, 1)},
+        "current": current,
         "sensors": {
             "declination_deg": round(rng.uniform(-20.0, 20.0), 1),
-            "compass_bias_deg": round(rng.uniform(-6.0, 6.0), 2),
+            "compass_bias_deg": round(bias, 2),
             "rpm_per_mps": round(rpm_true, 1),
         },
         "acoustics": {
@@ -106,12 +185,18 @@ def draw(seed: int) -> Draw:
             "temperature_c": round(rng.uniform(4.0, 25.0), 1),
             "salinity_ppt": round(rng.choice([0.2, 33.0, 35.0]), 1),
         },
-        "config": {"navigation": {"speed": {"rpm_per_mps": round(rpm_true * (1 + rpm_err), 1)}}},
+        "config": {"navigation": navigation},
     }
     dist = rng.uniform(50.0, 2000.0)
+    if cls == "short-near":
+        dist = rng.uniform(20.0, 300.0)
     bearing = math.radians(rng.uniform(0.0, 360.0))
     if kind == "beacon":
         motion = rng.choice(["anchored", "drifting", "motoring"])
+        if cls == "short-near":
+            motion = rng.choice(["anchored", "drifting"])
+        elif cls == "boat-outage":
+            motion = rng.choice(["drifting", "motoring"])
         sc["boat"] = {
             "north_m": round(dist * math.cos(bearing), 1),
             "east_m": round(dist * math.sin(bearing), 1),
@@ -119,6 +204,12 @@ def draw(seed: int) -> Draw:
             "heading_deg": round(rng.uniform(0.0, 360.0), 1),
             "drifts_with_current": motion == "drifting",
         }
+        if cls == "boat-outage":
+            # a boat motoring on a line holds its course within a few degrees
+            sc["boat"]["course_wander_deg_per_sqrt_s"] = round(rng.uniform(1.0, 5.0), 2)
+            sc["acoustics"]["location_outages"] = rng.randint(1, 3)
+            sc["acoustics"]["location_outage_min_s"] = 60.0
+            sc["acoustics"]["location_outage_max_s"] = 300.0
     else:
         n = 2 if kind == "lbl-2" else 3
         along = n == 2 and rng.random() < 0.5  # the track runs along the baseline
@@ -135,7 +226,7 @@ def draw(seed: int) -> Draw:
                 }
             )
         sc["acoustics"]["transponders"] = tps
-    return Draw(seed, kind, outliers, drops, cur_speed > 0.5 * speed and across > 0.7, sc)
+    return Draw(seed, kind, outliers, drops, cur_speed > 0.5 * speed and across > 0.7, sc, cls)
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,6 +235,7 @@ class Result:
     default: Score | None
     thesis: Score | None
     error: str = ""  # a replay that failed (an exception in the navigator)
+    bound_m: float = math.nan  # the mission's Cramer-Rao bound (bench/bound.py), RMS
 
     @property
     def diverged(self) -> bool:
@@ -168,21 +260,32 @@ def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise."""
     dr = draw(seed)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
-    write_mission(simulate(scenario_from_dict(dr.scenario), noise_seed or seed), d)
+    sc = scenario_from_dict(dr.scenario)
+    mission = simulate(sc, noise_seed or seed)
+    write_mission(mission, d)
+    b = mission_bound(mission, load_config(d / "config.yaml"))
     truth = read_jsonl(d / "truth.jsonl")
     out_d, err_d = _replay(d, "default")
     out_t, err_t = _replay(d, "thesis")
-    return Result(
+    result = Result(
         dr,
         score(out_d, truth) if out_d else None,
         score(out_t, truth) if out_t else None,
         err_d or err_t,
+        b.rms_m,
     )
+    shutil.rmtree(d, ignore_errors=True)
+    return result
 
 
 def _mean(xs: list[float]) -> float:
     xs = [x for x in xs if not math.isnan(x)]
     return statistics.fmean(xs) if xs else math.nan
+
+
+def _rms(xs: list[float]) -> float:
+    xs = [x for x in xs if not math.isnan(x)]
+    return math.sqrt(statistics.fmean([x * x for x in xs])) if xs else math.nan
 
 
 def _row(name: str, rs: list[Result]) -> str:
@@ -193,17 +296,28 @@ def _row(name: str, rs: list[Result]) -> str:
     rms_t = _mean([x.rms_m for x in t])
     rms_dr = _mean([x.dr_rms_m for x in d])
     beats_dr = sum(1 for x in d if x.rms_m <= x.dr_rms_m) / len(d) if d else math.nan
+    # against the bound: the root mean square over missions of each side
+    bounded = [r for r in ok if not math.isnan(r.bound_m) and r.default is not None]
+    ratio = _rms([r.default.rms_m for r in bounded if r.default]) / _rms(
+        [r.bound_m for r in bounded]
+    ) if bounded else math.nan
     return (
         f"| {name} | {len(rs)} | {sum(1 for r in rs if r.error)} | "
-        f"{sum(1 for r in rs if r.diverged)} | {rms_d:.1f} | {rms_t:.1f} | {rms_dr:.1f} | "
+        f"{sum(1 for r in rs if r.diverged)} | {rms_d:.1f} | "
+        f"{_mean([r.bound_m for r in bounded]):.1f} | {ratio:.2f} | {rms_t:.1f} | {rms_dr:.1f} | "
         f"{rms_d / rms_t:.2f} | {beats_dr:.2f} | "
-        f"{_mean([x.inside95 for x in d]):.2f} | "  # type: ignore[union-attr]
-        f"{_mean([x.current_rms_mps for x in d]):.3f} |"  # type: ignore[union-attr]
+        f"{_mean([x.inside95 for x in d]):.2f} | "
+        f"{_mean([x.ok_inside99 for x in d]):.3f} | "
+        f"{_mean([x.ok_fraction for x in d]):.2f} | "
+        f"{_mean([x.current_rms_mps for x in d]):.3f} |"
     )
 
 
 def table(results: list[Result], n: int) -> str:
     classes: list[tuple[str, list[Result]]] = [
+        (f"class {c}", [r for r in results if r.draw.cls == c]) for c in CLASSES
+    ]
+    classes += [
         ("single moving beacon", [r for r in results if r.draw.kind == "beacon"]),
         ("2-transponder LBL", [r for r in results if r.draw.kind == "lbl-2"]),
         ("3-transponder LBL", [r for r in results if r.draw.kind == "lbl-3"]),
@@ -215,14 +329,19 @@ def table(results: list[Result], n: int) -> str:
         ("**all**", results),
     ]
     lines = [
-        f"{n} missions, seeds 1..{n}, each with its own drawn conditions (bench/robustness.py).",
-        "RMS over the submerged part, in metres; *in95* = fraction of submerged time the truth",
-        "lies inside the 95 % ellipse; *cur* = RMS current error (m/s); *default <= DR* =",
-        "fraction of missions where the default mode's RMS is no worse than dead reckoning's.",
+        f"{n} missions, seeds 1..{n}, each with its own drawn class and conditions",
+        "(bench/robustness.py). RMS over the submerged part, in metres; *bound* = the",
+        "mission's posterior Cramer-Rao bound (bench/bound.py), mean over the class;",
+        "*/ bound* = the class's RMS over missions of the default's RMS, over that of",
+        "the bound; *in95* = fraction of submerged time the truth lies inside the 95 %",
+        "ellipse; *ok in99* = while integrity said ok, the fraction of that time the",
+        "truth lies inside the 99 % ellipse; *ok* = fraction of submerged time integrity",
+        "said ok; *cur* = RMS current error (m/s); *default <= DR* = fraction of missions",
+        "where the default mode's RMS is no worse than dead reckoning's.",
         "",
-        "| class | missions | exceptions | divergences | default rms | thesis rms | DR rms "
-        "| default / thesis | default <= DR | in95 | cur |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| class | missions | exceptions | divergences | default rms | bound | / bound "
+        "| thesis rms | DR rms | default / thesis | default <= DR | in95 | ok in99 | ok | cur |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row(name, rs) for name, rs in classes if rs]
     bad = [r for r in results if r.error or r.diverged]
@@ -282,15 +401,29 @@ def main() -> int:
         metavar="SEED",
         help="mission SEED's conditions again, with --missions other draws of sensor noise",
     )
+    p.add_argument(
+        "--only", choices=list(CLASSES), help="of seeds 1..--missions, those of this class"
+    )
+    p.add_argument("--missions-out", help="write one line per mission (JSON) to this file")
     args = p.parse_args()
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.workers)
     seeds = list(range(1, args.missions + 1))
+    if args.only:
+        seeds = [s for s in seeds if draw(s).cls == args.only]
     with (
         tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp,
         ProcessPoolExecutor(args.workers) as ex,
     ):
         results = list(ex.map(run_one, seeds, [tmp] * len(seeds)))
+    if args.missions_out:
+        with open(args.missions_out, "w", encoding="utf-8") as fh:
+            for r in results:
+                row = {"seed": r.draw.seed, "class": r.draw.cls, "kind": r.draw.kind,
+                       "bound_m": r.bound_m, "error": r.error, "diverged": r.diverged}
+                for name, sc in (("default", r.default), ("thesis", r.thesis)):
+                    row[name] = asdict(sc) if sc is not None else None
+                fh.write(json.dumps(row) + "\n")
     cmd = f"`python -m bench.robustness --missions {args.missions}`"
     report(
         f"{cmd}\n\n{table(results, args.missions)}", args.write, "bench-robustness", "Robustness"

@@ -133,17 +133,31 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
 
         zenoh_config(cfg.zenoh)  # the zenoh file opened and parsed as navd run will
     nav = cfg.navigation
-    print(f"{' + '.join([args.file, *(args.site or [])])}: ok")
-    print(
+    lines = [f"{' + '.join([args.file, *(args.site or [])])}: ok"]
+    lines.append(
         f"  filter mode {nav.filter}, {nav.rate_hz:g} Hz, "
         f"declination {nav.magnetic_declination_deg:+g} deg"
     )
-    print(f"  speed map {nav.speed.rpm_per_mps:g} RPM per m/s; sound speed {nav.sound_speed.model}")
+    lines.append(
+        f"  speed map {nav.speed.rpm_per_mps:g} RPM per m/s; sound speed {nav.sound_speed.model}"
+    )
     for name, b in cfg.beacons.items():
         where = f"{b.lat}, {b.lon}" if b.lat is not None else "position from replies only"
-        print(f"  beacon {name}: {where}, depth {b.depth:g} m, turnaround {b.turnaround_s:g} s")
-    for w in nav.sound_speed.model_obj().warnings():
-        print(f"  warning: {w}")
+        lines.append(
+            f"  beacon {name}: {where}, depth {b.depth:g} m, turnaround {b.turnaround_s:g} s"
+        )
+    lines += [f"  warning: {w}" for w in nav.sound_speed.model_obj().warnings()]
+    if not args.merged:
+        print("\n".join(lines))
+        return 0
+    import dataclasses
+
+    import yaml
+
+    # every key as navd will use it (the file, its overlays and sites, the defaults), as
+    # YAML a config can be: the summary above it as comments
+    print("\n".join(f"# {line}" for line in lines))
+    print(yaml.safe_dump(dataclasses.asdict(cfg), sort_keys=False), end="")
     return 0
 
 
@@ -393,6 +407,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--offline",
         action="store_true",
         help="for replay only: do not require the device ports navd run needs",
+    )
+    c.add_argument(
+        "--merged",
+        action="store_true",
+        help="also print the merged result (overlays, sites and defaults) as YAML",
     )
     c.set_defaults(func=_cmd_check_config)
     return p

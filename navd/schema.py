@@ -76,6 +76,8 @@ class RangeDecision:
     beacon_lat: float | None = _optional()  # the beacon position used
     beacon_lon: float | None = _optional()
     beacon_depth: float | None = _optional()
+    # the reply carried no position: the beacon was predicted, this long after its last
+    beacon_predicted_s: float | None = _optional()
     range_m: float | None = _optional()  # the range with the water's sound speed
     accepted: bool = False
     residual_m: float | None = None  # None: the range never reached the gate

@@ -41,6 +41,29 @@ def format_advisory(a: Advisory) -> str:
     )
 
 
+#: a suggested heading or weak axis that moved less than this is the same advice
+ADVICE_STEP_DEG = 10.0
+
+
+def _angle_moved(a: float | None, b: float | None) -> bool:
+    if a is None or b is None:
+        return (a is None) != (b is None)
+    return abs((a - b + 180.0) % 360.0 - 180.0) >= ADVICE_STEP_DEG
+
+
+def advice_changed(prev: Advisory | None, a: Advisory) -> bool:
+    """Worth a new line: another verdict, or a turn or axis that moved by 10 degrees.
+
+    The suggested heading follows the estimate and wanders by a degree or two from
+    one second to the next; reprinting it then says nothing new.
+    """
+    if prev is None or prev.verdict != a.verdict:
+        return True
+    return _angle_moved(prev.suggest_heading_deg, a.suggest_heading_deg) or _angle_moved(
+        prev.weak_axis_deg, a.weak_axis_deg
+    )
+
+
 def _endpoints(cfg: Config, connect: list[str] | None) -> list[str]:
     return endpoints(cfg.zenoh.listen, cfg.zenoh.connect, connect)
 
@@ -55,7 +78,7 @@ def watch(
 ) -> int:
     got: deque[Estimate | RangeDecision | Advisory] = deque(maxlen=256)
     wake = threading.Event()
-    said = ""  # the last advisory printed: a line only when it changes
+    said: Advisory | None = None  # the last advisory printed: a line when it changes
 
     def keep(x: Estimate | RangeDecision | Advisory) -> None:
         got.append(x)
@@ -78,10 +101,9 @@ def watch(
                 while got and (count is None or n < count):
                     x = got.popleft()
                     if isinstance(x, Advisory):
-                        line = format_advisory(x)
-                        if line != said:
-                            print(line, flush=True)
-                            said = line
+                        if advice_changed(said, x):
+                            print(format_advisory(x), flush=True)
+                            said = x
                         continue
                     if isinstance(x, RangeDecision):
                         verdict = "accepted" if x.accepted else f"rejected ({x.reason})"

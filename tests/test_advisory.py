@@ -64,3 +64,23 @@ def test_above_the_beacon_adds_nothing_and_never_raises() -> None:
     obs.add(0.0, *BEACON, *BEACON, 3.0)
     obs.add(1.0, *_at(10.0, 0.0), *BEACON, 0.0)
     assert obs.assess(2.0, math.nan).verdict == "no_ranges"
+
+
+def test_watch_reprints_advice_only_when_it_changes() -> None:
+    from navd.schema import Advisory
+    from navd.watch import advice_changed
+
+    def weak(heading: float, axis: float = 40.0) -> Advisory:
+        return Advisory(0.0, "weak_cross_range", 6, 300.0, 10.0, 0.1, axis, 30.0, heading, 5.0)
+
+    first = weak(120.0)
+    assert advice_changed(None, first)
+    # a degree or two of wander from second to second: the same advice
+    assert not advice_changed(first, weak(121.5))
+    assert not advice_changed(first, weak(118.0, axis=42.0))
+    # across north the wander is still small
+    assert not advice_changed(weak(359.0), weak(3.0))
+    # a turn that moved by ten degrees, another weak axis, or another verdict is news
+    assert advice_changed(first, weak(131.0))
+    assert advice_changed(first, weak(120.0, axis=60.0))
+    assert advice_changed(first, Advisory(0.0, "ok", 9, 300.0, 80.0))

@@ -9,9 +9,11 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 from navd.config import (
     ConfigError,
+    config_from_dict,
     default_config_path,
     load_config,
     log_dir,
@@ -70,6 +72,17 @@ def test_site_option_on_the_command_line(tmp_path: Path) -> None:
     r = _navd("check-config", str(ROOT / "config" / "navd.yaml"), "--site", str(site))
     assert r.returncode == 0, r.stderr
     assert "chesapeake-bay.yaml: ok" in r.stdout
+
+
+def test_check_config_shows_the_merged_result_as_a_config(tmp_path: Path) -> None:
+    site = ROOT / "config" / "sites" / "chesapeake-bay.yaml"
+    r = _navd("check-config", str(ROOT / "config" / "navd.yaml"), "--site", str(site), "--merged")
+    assert r.returncode == 0, r.stderr
+    merged = yaml.safe_load(r.stdout)
+    # the site's values won, the defaults are there, and it is a config navd reads as is
+    assert merged["navigation"]["speed"]["rpm_per_mps"] == 1150
+    assert merged["navigation"]["gate"]["chi2"] == 9.0
+    assert config_from_dict(merged) == load_config(ROOT / "config" / "navd.yaml", [site])
 
 
 def test_check_config_refuses_what_run_refuses(tmp_path: Path) -> None:

@@ -52,14 +52,28 @@ def test_gpx_is_valid_gpx_1_1_with_every_track(exported: Path) -> None:
     assert len(est) == _estimates(exported)
     (wpt,) = doc.xpath("//g:wpt", namespaces=ns)  # claytor-3 surfaces once
     assert "against the first GPS fix" in wpt.findtext("g:desc", namespaces=ns)
+    # no line across the dive: the fixes before it and after it are segments of their own,
+    # as is dead reckoning after its reset at the first fix; the estimate runs unbroken
+    def segs(name: str) -> int:
+        return len(doc.xpath(f"//g:trk[g:name='{name}']/g:trkseg", namespaces=ns))
+
+    assert segs("GPS fixes") == 2 and segs("dead reckoning") >= 2 and segs("estimate") == 1
 
 
 def test_kml_has_tracks_surfacings_and_ellipses(exported: Path) -> None:
     doc = etree.parse(str(exported / "m.kml"))
-    marks = doc.getroot().iter(f"{KML}Placemark")
+    folders = [f.findtext(f"{KML}name") for f in doc.getroot().iter(f"{KML}Folder")]
+    assert folders == [
+        "estimate", "smoothed", "dead reckoning", "GPS fixes", "beacon", "95 % ellipses"
+    ]  # fmt: skip
+    marks = list(doc.getroot().iter(f"{KML}Placemark"))
     names = [m.findtext(f"{KML}name") for m in marks]
-    assert names[:5] == ["estimate", "smoothed", "dead reckoning", "GPS fixes", "beacon"]
+    assert names.count("GPS fixes") == 2  # before the dive and after it, no line between
     assert any(n.startswith("surfacing 1: ") for n in names)
+    # every track segment and ellipse has its time, for Google Earth's slider
+    for m in marks:
+        if not m.findtext(f"{KML}name").startswith("surfacing"):
+            assert m.find(f"{KML}TimeSpan") is not None or m.find(f"{KML}TimeStamp") is not None
     rings = list(doc.getroot().iter(f"{KML}LinearRing"))
     n = _estimates(exported)
     assert len(rings) >= n // 300  # one every 30 s at 10 Hz
@@ -144,3 +158,31 @@ def test_export_refuses_a_directory_and_a_zero_ellipse_interval(tmp_path: Path) 
         )  # fmt: skip
         assert r.returncode == 2 and said in r.stderr, r.stderr
         assert said in r.stderr.strip().splitlines()[-1] and "Traceback" not in r.stderr
+
+
+def test_gis_and_csv_need_no_extra_and_mcap_names_its_own(exported: Path, tmp_path: Path) -> None:
+    """As after a plain ``pip install navd``: GeographicLib, matplotlib and the Foxglove SDK
+    absent.  GPX, KML and CSV are written; MCAP names the ``foxglove`` extra."""
+    blocked = (
+        "import sys\n"
+        "for m in ('geographiclib', 'matplotlib', 'foxglove', 'pyproj'):\n"
+        "    sys.modules[m] = None\n"
+        "from navd.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    base = [sys.executable, "-c", blocked, "export", str(exported / "measurements.jsonl"),
+            "--config", str(exported / "config.yaml")]  # fmt: skip
+    r = subprocess.run(
+        [*base, "--gpx", str(tmp_path / "m.gpx"), "--kml", str(tmp_path / "m.kml"),
+         "--csv", str(tmp_path / "m.csv")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    gpx = etree.parse(str(tmp_path / "m.gpx"))
+    assert gpx.getroot().findall("{http://www.topografix.com/GPX/1/1}trk")
+    assert _estimates(tmp_path) == _estimates(exported)
+    r = subprocess.run(
+        [*base, "--mcap", str(tmp_path / "m.mcap")], capture_output=True, text=True, timeout=120
+    )
+    assert r.returncode == 2
+    assert "pip install 'navd[foxglove]'" in r.stderr and "Traceback" not in r.stderr

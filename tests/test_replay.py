@@ -152,6 +152,10 @@ def test_report_writes_figures(claytor: Path, tmp_path: Path) -> None:
     for name in ("track.png", "ranges.png", "current_uncertainty.png", "summary.txt"):
         assert (tmp_path / "rep" / name).stat().st_size > 1000 or name == "summary.txt"
     assert "error at surfacing" in (tmp_path / "rep" / "summary.txt").read_text()
+    # a --truth that is not the simulator's truth is blamed by name, in one line
+    r = run("report", str(out), "--truth", str(out), "--out", str(tmp_path / "rep2"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.count("\n") == 1 and f"{out}: record 1 is not a truth sample" in r.stderr
 
 
 def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from navd.analysis.replay import run_navigator
-from navd.analysis.score import first_fix_after, surfacing_error_gps
+from navd.analysis.surfacing import first_fix_after, surfacing_error_gps
 from navd.config import Config
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementLog, read_measurement_log

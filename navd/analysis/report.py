@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from navd import geodesy
-from navd.analysis.score import TruthAt, score, surfacing_error_gps
+from navd.analysis.score import TruthAt, score
+from navd.analysis.surfacing import surfacing_error_gps
 from navd.filter.advisory import replayed
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
@@ -32,6 +33,24 @@ def _read(path: str | Path) -> list[dict[str, Any]]:
                 raise LogError(f"{path}: line {n}: not JSON") from None
             if isinstance(obj, dict):
                 rows.append(obj)
+    return rows
+
+
+_TRUTH_FIELDS = ("t", "lat", "lon", "depth", "current_n", "current_e", "boat_lat", "boat_lon")
+
+
+def _read_truth(path: str | Path) -> list[dict[str, Any]]:
+    """The simulator's truth (``truth.jsonl``); any other file is named as not one."""
+    rows = _read(path)
+    for n, row in enumerate(rows, 1):
+        # an estimate has most of these too, but a type, which a truth sample has not
+        if "type" in row or any(not isinstance(row.get(k), int | float) for k in _TRUTH_FIELDS):
+            raise LogError(
+                f"{path}: record {n} is not a truth sample (it needs "
+                f"{', '.join(_TRUTH_FIELDS)}: the simulator's truth.jsonl)"
+            )
+    if not rows:
+        raise LogError(f"{path}: no truth samples")
     return rows
 
 
@@ -69,7 +88,7 @@ def make_report(
     fixes: list[Gps] = []
     if measurements:
         fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
-    tru = _read(truth) if truth else []
+    tru = _read_truth(truth) if truth else []
 
     # -- track ---------------------------------------------------------------------
     fig, ax = plt.subplots(figsize=(8, 8))
@@ -108,14 +127,27 @@ def make_report(
     plt.close(fig)
 
     # -- ranges ----------------------------------------------------------------------
+    # Time as minutes of the mission: a daemon's log counts its monotonic clock, which
+    # means nothing to a reader; its estimates carry UTC, which names the start.
+    t0 = est[0]["t"]
+    start = est[0].get("t_utc")
+    t_label = f"minutes since {start}" if start else f"minutes since t = {t0:.0f} s"
+
+    def minutes(t: float) -> float:
+        return (t - t0) / 60.0
+
     fig, ax = plt.subplots(figsize=(9, 4))
-    a = [(r["t"], r["range_m"]) for r in rng if r["accepted"] and "range_m" in r]
-    rj = [(r["t"], r["range_m"]) for r in rng if not r["accepted"] and "range_m" in r]
+    a = [(minutes(r["t"]), r["range_m"]) for r in rng if r["accepted"] and "range_m" in r]
+    rj = [(minutes(r["t"]), r["range_m"]) for r in rng if not r["accepted"] and "range_m" in r]
+    # refused before a range was computed (no beacon position, say): counted, not plotted
+    unplotted = sum(1 for r in rng if not r["accepted"] and "range_m" not in r)
     if a:
         ax.plot(*zip(*a, strict=True), "bx", label=f"accepted ({len(a)})")
-    if rj:
-        ax.plot(*zip(*rj, strict=True), "rx", label=f"rejected ({len(rj)})")
-    ax.set_xlabel("t (s)")
+    if rj or unplotted:
+        label = f"rejected ({len(rj) + unplotted}"
+        label += f"; {unplotted} without a range, not drawn)" if unplotted else ")"
+        ax.plot(*(zip(*rj, strict=True) if rj else ([], [])), "rx", label=label)
+    ax.set_xlabel(t_label)
     ax.set_ylabel("range (m)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
@@ -125,13 +157,14 @@ def make_report(
     plt.close(fig)
 
     # -- current and uncertainty ---------------------------------------------------
-    t = [r["t"] for r in est]
+    t = [minutes(r["t"]) for r in est]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     ax1.plot(t, [r["current_n"] for r in est], label="north")
     ax1.plot(t, [r["current_e"] for r in est], label="east")
     if tru:
-        ax1.plot([s["t"] for s in tru], [s["current_n"] for s in tru], "C0--", lw=0.8)
-        ax1.plot([s["t"] for s in tru], [s["current_e"] for s in tru], "C1--", lw=0.8)
+        tt = [minutes(s["t"]) for s in tru]
+        ax1.plot(tt, [s["current_n"] for s in tru], "C0--", lw=0.8)
+        ax1.plot(tt, [s["current_e"] for s in tru], "C1--", lw=0.8)
     ax1.set_ylabel("current (m/s)")
     ax1.legend(fontsize=8)
     ax1.grid(True, alpha=0.3)
@@ -144,10 +177,10 @@ def make_report(
             s = truth_at(r["t"])
             if s is not None:
                 g = _Grid(s["lat"], s["lon"])
-                err.append((r["t"], math.hypot(*g.en(r["lat"], r["lon"]))))
+                err.append((minutes(r["t"]), math.hypot(*g.en(r["lat"], r["lon"]))))
         if err:
             ax2.plot(*zip(*err, strict=True), "k", lw=0.8, label="error vs truth")
-    ax2.set_xlabel("t (s)")
+    ax2.set_xlabel(t_label)
     ax2.set_ylabel("metres")
     ax2.legend(fontsize=8)
     ax2.grid(True, alpha=0.3)

@@ -4,7 +4,7 @@ Errors are measured with GeographicLib's inverse geodesic (independent of navd's
 geodesy).  Only the submerged part of the mission is scored: at the surface every
 mode is pinned to GPS.  The surfacing error is the error of the last submerged
 estimate: against the truth at that time where the truth is known (:func:`score`),
-else against the first GPS fix after it (:func:`surfacing_error_gps`, what a
+else against the first GPS fix after it (``navd/analysis/surfacing.py``, what a
 field mission has).
 """
 
@@ -20,10 +20,10 @@ import numpy as np
 from geographiclib.geodesic import Geodesic
 
 from navd.formats import jsonlines
-from navd.records import Gps
 
 _GEOD = Geodesic.WGS84
 CHI2_2DOF_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
+CHI2_2DOF_99 = 9.210
 _SUBMERGED_DEPTH_M = 0.3
 
 
@@ -44,6 +44,10 @@ class Score:
     # the most replies, over the mission's re-acquisitions, from the first gate rejection of
     # the streak to the next accepted range ("re-acquires within a few pings")
     reacquire_replies_max: float = math.nan
+    # while integrity said ok: the fraction of that time the truth lies in the 99 % ellipse,
+    # and the fraction of submerged time it said ok
+    ok_inside99: float = math.nan
+    ok_fraction: float = math.nan
 
 
 def replies_to_reacquire(ranges: list[dict[str, Any]]) -> list[int]:
@@ -105,6 +109,7 @@ class TruthAt:
 def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
     truth_at = TruthAt(truth)
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
+    ok_inside: list[bool] = []
     last_sub: tuple[float, float] | None = None
     for o in outputs:
         if o.get("type") != "estimate":
@@ -121,6 +126,8 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         except np.linalg.LinAlgError:
             d2 = math.inf
         inside.append(d2 <= CHI2_2DOF_95)
+        if o.get("integrity", "ok") == "ok":
+            ok_inside.append(d2 <= CHI2_2DOF_99)
         cur_errs.append(
             math.hypot(o["current_n"] - tr["current_n"], o["current_e"] - tr["current_e"])
         )
@@ -153,26 +160,6 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         fix_rms_m=float(np.sqrt(np.mean(np.array(fix_errs) ** 2))) if fix_errs else math.nan,
         fix_coverage=len(fix_errs) / len(errs),
         reacquire_replies_max=float(max(reacq)) if reacq else math.nan,
+        ok_inside99=float(np.mean(ok_inside)) if ok_inside else math.nan,
+        ok_fraction=len(ok_inside) / len(errs),
     )
-
-
-def surfacing_error_gps(
-    estimates: list[dict[str, Any]], fixes: list[Gps]
-) -> tuple[float, float] | None:
-    """Distance from the last submerged estimate to the first GPS fix after it, and
-    how long after it that fix came; None without both."""
-    last_sub = None
-    for e in estimates:
-        if e["mode"] == "submerged":
-            last_sub = e
-    if last_sub is None:
-        return None
-    f = first_fix_after(last_sub["t"], fixes)
-    if f is None or f.lat is None or f.lon is None:
-        return None
-    dn, de = _ne_error(last_sub["lat"], last_sub["lon"], f.lat, f.lon)
-    return math.hypot(dn, de), f.t - last_sub["t"]
-
-
-def first_fix_after(t: float, fixes: list[Gps]) -> Gps | None:
-    return next((f for f in fixes if f.t > t and f.lat is not None and f.lon is not None), None)

@@ -1,8 +1,16 @@
-"""Where the beacon was: the position carried in each reply, checked, or the configured one."""
+"""Where the beacon was: the position carried in each reply, checked, or the configured one.
+
+When the boat's location line is down (its GPS, or the shore link that forwards it),
+replies come without a position.  The beacon is then predicted from the positions it
+reported over the last ``_FIT_S`` seconds, at the velocity they show, with an
+uncertainty that grows with the time since the last one (the velocity's own error,
+and a boat that changes speed or course), for at most ``beacons.<name>.predict_max_s``.
+"""
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 from navd import geodesy
@@ -10,6 +18,11 @@ from navd.config import Beacon, GateConfig
 
 # GPS on the boat wanders by about this much between fixes (seed 000: 10 m 2D RMS).
 _POSITION_SLACK_M = 30.0
+# reported positions the prediction is fitted to (and how many it needs), and how much
+# a boat's velocity wanders while it holds a course (white acceleration, m/s^2)
+_FIT_S = 300.0
+_FIT_MIN = 3
+_BOAT_ACCEL_MPS2 = 0.005
 
 
 @dataclass(frozen=True, slots=True)
@@ -20,6 +33,8 @@ class BeaconFix:
     turnaround_s: float
     position_std_m: float
     position_corr_s: float
+    predicted_s: float = 0.0  # > 0: predicted this long after the last reported position
+    predicted_std_m: float = 0.0  # the prediction's own error, beside position_std_m
 
 
 class BeaconResolver:
@@ -37,6 +52,7 @@ class BeaconResolver:
         self.max_speed = gate.max_beacon_speed_mps
         self._last: dict[str, tuple[float, float, float]] = {}
         self._candidate: dict[str, tuple[float, float, float]] = {}
+        self._reported: dict[str, deque[tuple[float, float, float]]] = {}
 
     def _moved_too_far(
         self, a: tuple[float, float, float], t: float, lat: float, lon: float
@@ -60,7 +76,7 @@ class BeaconResolver:
             depth = cfg.depth if cfg else 0.0
         spec = cfg or Beacon()
         if lat is None or lon is None:
-            return None, "no_beacon_position"
+            return self._predict(t, name, depth, spec)
         lat_r, lon_r = math.radians(lat), math.radians(lon)
         carried = lat_deg is not None or lon_deg is not None
         if carried:
@@ -72,9 +88,65 @@ class BeaconResolver:
                     return None, "beacon_jump"
             self._candidate.pop(name, None)
             self._last[name] = (t, lat_r, lon_r)
+            if lat_deg is not None and lon_deg is not None:
+                seen = self._reported.setdefault(name, deque())
+                seen.append((t, lat_r, lon_r))
+                while seen and seen[0][0] < t - _FIT_S:
+                    seen.popleft()
         return (
             BeaconFix(
                 lat_r, lon_r, depth, spec.turnaround_s, spec.position_std_m, spec.position_corr_s
+            ),
+            "ok",
+        )
+
+    def _predict(
+        self, t: float, name: str, depth: float, spec: Beacon
+    ) -> tuple[BeaconFix | None, str]:
+        """Where the beacon is now, from the velocity its recent reports show."""
+        seen = self._reported.get(name)
+        if not seen or len(seen) < _FIT_MIN:
+            return None, "no_beacon_position"
+        t_last, lat0, lon0 = seen[-1]
+        age = t - t_last
+        if not 0.0 <= age <= spec.predict_max_s:
+            return None, "no_beacon_position"
+        # least-squares velocity, in metres from the last report
+        ts, ns, es = [], [], []
+        for ti, la, lo in seen:
+            e, n, _ = geodesy.enu_offset(lat0, lon0, 0.0, la, lo, 0.0)
+            ts.append(ti - t_last)
+            ns.append(n)
+            es.append(e)
+        k = len(ts)
+        tm = sum(ts) / k
+        stt = sum((x - tm) ** 2 for x in ts)
+        span = ts[-1] - ts[0]
+        if stt <= 0.0 or span <= 0.0:
+            return None, "no_beacon_position"
+        nm, em = sum(ns) / k, sum(es) / k
+        vn = sum((x - tm) * (y - nm) for x, y in zip(ts, ns, strict=True)) / stt
+        ve = sum((x - tm) * (y - em) for x, y in zip(ts, es, strict=True)) / stt
+        if math.hypot(vn, ve) > self.max_speed:
+            return None, "no_beacon_position"
+        # the fitted line through the mean, carried to now
+        dn = nm + vn * (age - tm)
+        de = em + ve * (age - tm)
+        lat, lon = geodesy.offset_position(lat0, lon0, dn, de, 0.0)
+        # The reports' errors are correlated over minutes, so the velocity is known
+        # about as well as from two independent positions the fit's span apart.
+        v_std = math.sqrt(2.0) * spec.position_std_m / span
+        var = (v_std * age) ** 2 + _BOAT_ACCEL_MPS2**2 * age**3 / 3.0
+        return (
+            BeaconFix(
+                lat,
+                lon,
+                depth,
+                spec.turnaround_s,
+                spec.position_std_m,
+                spec.position_corr_s,
+                predicted_s=max(age, 1e-3),
+                predicted_std_m=math.sqrt(var),
             ),
             "ok",
         )

@@ -427,6 +427,9 @@ class Navigator:
         out.beacon_lat = math.degrees(fix.lat)
         out.beacon_lon = math.degrees(fix.lon)
         out.beacon_depth = fix.depth
+        if fix.predicted_s > 0.0:
+            out.beacon_predicted_s = fix.predicted_s
+            self.counters["ranges_beacon_predicted"] += 1
         c_water = self.sound.at(0.5 * (self.depth.m + fix.depth))
         rng = slant_range(
             rec, c_water, self.sound.modem_mps, fix.turnaround_s, self.filter.ranges_as_reported
@@ -449,7 +452,9 @@ class Navigator:
             beacon_lon=fix.lon,
             beacon_hd=h - fix.depth,
             vehicle_hd=h - self.depth.m,
-            std_m=self.nav.noise.range_std_m,
+            # a predicted beacon's own error is range noise: the offset states model
+            # the error of its reports, not of the prediction
+            std_m=math.hypot(self.nav.noise.range_std_m, fix.predicted_std_m),
             beacon_position_std_m=fix.position_std_m,
             beacon_position_corr_s=fix.position_corr_s,
         )
@@ -476,7 +481,7 @@ class Navigator:
 
     def _to_net(self, t: float, fix: Any, rng: float) -> None:
         """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
-        std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m)
+        std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m, fix.predicted_std_m)
         h = self.surface_altitude
         r = NetRange(t, fix.lat, fix.lon, h - fix.depth, rng, std, self.net.rel_n, self.net.rel_e)
         guess = None

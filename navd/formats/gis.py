@@ -4,6 +4,11 @@ Tracks: the estimate, the smoothed estimate (when there is one), dead reckoning,
 GPS fixes and the beacon as its replies placed it; points: each surfacing with the
 distance between where navd thought the vehicle was and the first GPS fix.  KML also
 draws the 95 % position ellipse every ``ellipse_every_s``.
+
+A track is cut into segments where it has a gap in time (GPS fixes over a dive, the
+beacon while its location line was down) or jumps (dead reckoning reset at a fix), so
+a viewer draws no line that the vehicle never ran: GPX ``trkseg``s, and in KML one
+placemark per segment, each with its ``TimeSpan`` for Google Earth's time slider.
 """
 
 from __future__ import annotations
@@ -52,6 +57,41 @@ def _tracks(m: Mission) -> list[tuple[str, list[tuple[float, float, float, float
     return out
 
 
+# a gap longer than this in a track (beacon replies come every 10 s or so) starts a new
+# segment, and in dead reckoning (reset to each fix) a step faster than a vehicle moves
+_GAP_S = {"beacon": 120.0}
+_JUMPS = ("dead reckoning",)
+_DEFAULT_GAP_S = 5.0
+_MAX_SPEED_MPS = 15.0
+_JUMP_SLACK_M = 20.0
+
+
+def segments(
+    name: str, pts: list[tuple[float, float, float, float]]
+) -> list[list[tuple[float, float, float, float]]]:
+    """The track's points split where time has a gap or the position jumps."""
+    gap = _GAP_S.get(name, _DEFAULT_GAP_S)
+    out: list[list[tuple[float, float, float, float]]] = []
+    prev = None
+    for p in pts:
+        if prev is not None:
+            dt = p[0] - prev[0]
+            jump = False
+            if name in _JUMPS:
+                e, n, _ = geodesy.enu_offset(
+                    math.radians(prev[1]), math.radians(prev[2]), 0.0,
+                    math.radians(p[1]), math.radians(p[2]), 0.0,
+                )  # fmt: skip
+                jump = math.hypot(e, n) > _JUMP_SLACK_M + _MAX_SPEED_MPS * max(dt, 0.0)
+            if dt > gap or jump:
+                prev = None
+        if prev is None:
+            out.append([])
+        out[-1].append(p)
+        prev = p
+    return out
+
+
 def write_gpx(m: Mission, path: str | Path) -> None:
     ET.register_namespace("", GPX_NS)
     q = f"{{{GPX_NS}}}"
@@ -70,11 +110,12 @@ def write_gpx(m: Mission, path: str | Path) -> None:
     for name, pts in _tracks(m):
         trk = ET.SubElement(gpx, f"{q}trk")
         ET.SubElement(trk, f"{q}name").text = name
-        seg = ET.SubElement(trk, f"{q}trkseg")
-        for t, lat, lon, depth in pts:
-            p = ET.SubElement(seg, f"{q}trkpt", {"lat": f"{lat:.8f}", "lon": f"{lon:.8f}"})
-            ET.SubElement(p, f"{q}ele").text = f"{-depth:.2f}"  # below the surface
-            ET.SubElement(p, f"{q}time").text = _iso(m, t)
+        for part in segments(name, pts):
+            seg = ET.SubElement(trk, f"{q}trkseg")
+            for t, lat, lon, depth in part:
+                p = ET.SubElement(seg, f"{q}trkpt", {"lat": f"{lat:.8f}", "lon": f"{lon:.8f}"})
+                ET.SubElement(p, f"{q}ele").text = f"{-depth:.2f}"  # below the surface
+                ET.SubElement(p, f"{q}time").text = _iso(m, t)
     ET.ElementTree(gpx).write(path, encoding="UTF-8", xml_declaration=True)
 
 
@@ -110,12 +151,22 @@ def write_kml(m: Mission, path: str | Path, ellipse_every_s: float = 60.0) -> No
     colours = {"estimate": "ff00ff00", "smoothed": "ffffff00", "dead reckoning": "ffff00ff"}
     colours |= {"GPS fixes": "ff0000ff", "beacon": "ff00ffff"}
     for name, pts in _tracks(m):
-        pm = ET.SubElement(doc, f"{q}Placemark")
-        ET.SubElement(pm, f"{q}name").text = name
-        style = ET.SubElement(ET.SubElement(pm, f"{q}Style"), f"{q}LineStyle")
-        ET.SubElement(style, f"{q}color").text = colours.get(name, "ffffffff")
-        line = ET.SubElement(pm, f"{q}LineString")
-        ET.SubElement(line, f"{q}coordinates").text = _coords((p[1], p[2]) for p in pts)
+        folder = ET.SubElement(doc, f"{q}Folder")
+        ET.SubElement(folder, f"{q}name").text = name
+        for part in segments(name, pts):
+            pm = ET.SubElement(folder, f"{q}Placemark")
+            ET.SubElement(pm, f"{q}name").text = name
+            span = ET.SubElement(pm, f"{q}TimeSpan")
+            ET.SubElement(span, f"{q}begin").text = _iso(m, part[0][0])
+            ET.SubElement(span, f"{q}end").text = _iso(m, part[-1][0])
+            style = ET.SubElement(ET.SubElement(pm, f"{q}Style"), f"{q}LineStyle")
+            ET.SubElement(style, f"{q}color").text = colours.get(name, "ffffffff")
+            if len(part) == 1:  # a LineString needs two points
+                pt = ET.SubElement(pm, f"{q}Point")
+                ET.SubElement(pt, f"{q}coordinates").text = _coords([(part[0][1], part[0][2])])
+                continue
+            line = ET.SubElement(pm, f"{q}LineString")
+            ET.SubElement(line, f"{q}coordinates").text = _coords((p[1], p[2]) for p in part)
     for i, s in enumerate(m.surfacings(), 1):
         pm = ET.SubElement(doc, f"{q}Placemark")
         ET.SubElement(pm, f"{q}name").text = f"surfacing {i}: {s.error_m:.1f} m"
@@ -125,15 +176,17 @@ def write_kml(m: Mission, path: str | Path, ellipse_every_s: float = 60.0) -> No
         )
         pt = ET.SubElement(pm, f"{q}Point")
         ET.SubElement(pt, f"{q}coordinates").text = _coords([(s.lat, s.lon)])
-    folder = ET.SubElement(doc, f"{q}Folder")
-    ET.SubElement(folder, f"{q}name").text = "95 % ellipses"
+    ellipses = ET.SubElement(doc, f"{q}Folder")
+    ET.SubElement(ellipses, f"{q}name").text = "95 % ellipses"
     t_next = -math.inf
     for e in m.estimates:
         if e["t"] < t_next:
             continue
         t_next = e["t"] + ellipse_every_s
-        pm = ET.SubElement(folder, f"{q}Placemark")
+        pm = ET.SubElement(ellipses, f"{q}Placemark")
         ET.SubElement(pm, f"{q}name").text = _iso(m, e["t"])
+        when = ET.SubElement(ET.SubElement(pm, f"{q}TimeStamp"), f"{q}when")
+        when.text = _iso(m, e["t"])
         poly = ET.SubElement(ET.SubElement(pm, f"{q}Polygon"), f"{q}outerBoundaryIs")
         ring = ET.SubElement(poly, f"{q}LinearRing")
         ET.SubElement(ring, f"{q}coordinates").text = _coords(ellipse95(e))

@@ -26,6 +26,8 @@ class Leg:
     heading_deg: float = _f(0.0, lo=-360.0, hi=360.0)  # true heading
     duration_s: float = _f(60.0, gt=0.0)
     speed_mps: float | None = _f(None, lo=0.0, hi=5.0)  # type: ignore[arg-type]
+    # the leg's depth, when not the vehicle's (0: a surfacing for GPS)
+    depth_m: float | None = _f(None, lo=0.0, hi=500.0)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +51,7 @@ class Current:
     toward_deg: float = _f(0.0, lo=-360.0, hi=360.0)
     tidal_amplitude_mps: float = _f(0.0, lo=0.0, hi=3.0)  # added along the mean direction
     tidal_period_s: float = _f(44714.0, gt=0.0)  # M2
+    tidal_phase_deg: float = _f(0.0, lo=-360.0, hi=360.0)  # of the tide at t = 0
     veer_deg_per_hour: float = _f(0.0, lo=-360.0, hi=360.0)
 
 
@@ -83,6 +86,9 @@ class Boat:
     heading_deg: float = _f(0.0, lo=-360.0, hi=360.0)
     drifts_with_current: bool = True
     wander_mps: float = _f(0.05, lo=0.0)  # random course changes of a boat holding station
+    # how fast its course wanders (a random walk): a boat holding station turns every
+    # way, one motoring on a line holds its course within a few degrees
+    course_wander_deg_per_sqrt_s: float = _f(20.0, lo=0.0)
     gps_std_m: float = _f(7.0, lo=0.0)  # per axis (10 m 2D RMS in Claytor Lake)
     gps_corr_s: float = _f(60.0, gt=0.0)
     transducer_depth_m: float = _f(3.0, lo=0.0)
@@ -121,6 +127,11 @@ class Acoustics:
     modem_mps: float = _f(1500.0, gt=1300.0, hi=1700.0)
     turnaround_s: float = _f(0.0, lo=0.0)
     timeout_s: float = _f(8.0, gt=0.0)
+    # spans without the boat's location line (its GPS or the shore link down): the
+    # replies carry no position; their number, each lasting between min and max
+    location_outages: int = _f(0, lo=0, hi=100)
+    location_outage_min_s: float = _f(60.0, gt=0.0)
+    location_outage_max_s: float = _f(300.0, gt=0.0)
     # fixed LBL transponders interrogated round robin, one per ping; empty: the boat's UDB
     transponders: list[Transponder] = field(default_factory=list)
 

@@ -111,13 +111,16 @@ class _Plan:
         depth = min(v.depth_m, (t - self.t_dive) * v.dive_rate_mps)
         for t0, t1, leg in self.legs:
             if t0 <= t < t1:
+                if leg.depth_m is not None:  # the depth rate limit makes the transition
+                    depth = leg.depth_m
                 return leg.heading_deg, leg.speed_mps or v.speed_mps, depth
         return None, v.speed_mps, depth  # pragma: no cover
 
 
 def current_at(sc: Scenario, t: float) -> tuple[float, float]:
     c = sc.current
-    speed = c.speed_mps + c.tidal_amplitude_mps * math.sin(2.0 * math.pi * t / c.tidal_period_s)
+    phase = 2.0 * math.pi * t / c.tidal_period_s + math.radians(c.tidal_phase_deg)
+    speed = c.speed_mps + c.tidal_amplitude_mps * math.sin(phase)
     toward = math.radians(c.toward_deg + c.veer_deg_per_hour * t / 3600.0)
     return speed * math.cos(toward), speed * math.sin(toward)
 
@@ -241,7 +244,7 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         ve = speed * math.sin(math.radians(heading)) + ce
         lat, lon = _offset(lat, lon, vn * dt, ve * dt)
         if b.wander_mps > 0:
-            boat_course += rng.normal(0.0, 20.0 * math.sqrt(dt))
+            boat_course += rng.normal(0.0, b.course_wander_deg_per_sqrt_s * math.sqrt(dt))
         bvn = b.speed_mps * math.cos(math.radians(boat_course))
         bve = b.speed_mps * math.sin(math.radians(boat_course))
         if b.drifts_with_current:
@@ -310,6 +313,15 @@ class AcousticChannel:
         self.p_gb = frac * self.p_bg / max(1e-9, 1.0 - frac)
         self.bad = False
         self.t_end = (len(truth) - 1) * dt
+        # replies an ideal outlier detector keeps (no multipath, the position as sent),
+        # as (arrival, beacon): what the bench's Cramer-Rao bound is computed from
+        self.clean: list[tuple[float, str]] = []
+        # spans with no location line from the boat: replies carry no position
+        self.outages: list[tuple[float, float]] = []
+        for _ in range(a.location_outages):
+            span = float(rng.uniform(a.location_outage_min_s, a.location_outage_max_s))
+            start = float(rng.uniform(0.0, max(0.0, self.t_end - span)))
+            self.outages.append((start, start + span))
 
     def _index(self, t: float) -> tuple[int, float]:
         i = min(len(self.truth) - 2, max(0, int(t / self.dt)))
@@ -358,6 +370,8 @@ class AcousticChannel:
         if rng.random() < a.multipath_prob:
             extra += self._multipath()
         twtt = tr - t_ping + 2.0 * extra / self.c_water
+        if abs(extra) < 5.0 * a.range_noise_m + 1e-9:
+            self.clean.append((round(tr, 6), tp.name))
         return TravelTime(round(tr, 6), round(t_ping, 6), round(max(0.0, twtt), 9), tp.name)
 
     def _multipath(self) -> float:
@@ -376,7 +390,8 @@ class AcousticChannel:
             return None
         m = a.modem_mps * (tr - t_ping - a.turnaround_s) / 2.0
         m += rng.normal(0.0, a.range_noise_m)
-        if rng.random() < a.multipath_prob:
+        multipath = rng.random() < a.multipath_prob
+        if multipath:
             m += self._multipath()
         i = min(len(self.boat_gps) - 1, int(math.floor(tb)) * round(1.0 / self.dt))
         blat, blon = self.boat_gps[i]
@@ -390,13 +405,20 @@ class AcousticChannel:
             else:  # the position field missing from the reply
                 blat = blon = None  # type: ignore[assignment]
                 bdepth = None
+        corrupt = blat != self.boat_gps[i][0] or blon != self.boat_gps[i][1]
         if a.corrupt_gross_prob and blat is not None and rng.random() < a.corrupt_gross_prob:
+            corrupt = True
             if rng.random() < 0.5:
                 blat = max(
                     -89.0, min(89.0, blat + float(rng.choice([-1, 1]) * rng.uniform(0.1, 5.0)))
                 )
             else:
                 blon = 0.0
+        if any(t0 <= tr < t1 for t0, t1 in self.outages):
+            blat = blon = None  # type: ignore[assignment]
+            bdepth = None
+        elif not (multipath or corrupt):
+            self.clean.append((round(tr, 6), "udb"))
         return Range(
             round(tr, 6),
             round(t_ping, 6),

@@ -1,0 +1,192 @@
+"""The posterior Cramér-Rao bound of a simulated mission: the best any estimator could do.
+
+Tichavský, Muravchik and Nehorai, "Posterior Cramér-Rao bounds for discrete-time
+nonlinear filtering", IEEE Trans. Signal Processing 46(5), 1998: for additive
+Gaussian process and measurement noise, the information recursion is the Kalman
+covariance recursion with every Jacobian taken at the true state.  That is what this
+module runs, over the simulator's truth, with the simulator's own noise:
+
+* states: position north/east, current north/east, heading bias, speed scale, and
+  for each beacon the error of the position it reports (the boat's GPS, a
+  first-order Gauss-Markov process with the boat's ``gps_std_m`` and
+  ``gps_corr_s``; a transponder's survey error, constant with ``survey_std_m``);
+* process noise: the compass and RPM noise of each sample (white at the sensor
+  rate), and for the current a random walk as fast as the truth's current changes
+  (its rate of change squared times ``CURRENT_MEMORY_S``: a tidal stream is not
+  known to the estimator as a sinusoid);
+* priors: position from the first GPS fix; each calibration state's std is the
+  truth's own size, with a floor.  The bound is a mean over the prior: one taken
+  wider than the errors a mission really has is not reached by any estimator on
+  that mission, one taken narrower (the truth's value itself) is an estimator
+  that was told the answer;
+* measurements: GPS fixes as the simulator drew them, and the ranges an ideal
+  outlier detector keeps (no multipath, no corrupted or missing beacon position:
+  ``AcousticChannel.clean``), with the range noise and the transducer's swing.
+
+Ranges sent while the boat's location line was down are left out, so in that
+class the bound is that of an estimator that waits for the line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navd.config import Config
+from navd.hil.world import Mission
+from navd.records import Gps
+
+# A current that changes is a random walk with the variance it would build in this long
+# (how far back the ranges that measure the current reach).
+CURRENT_MEMORY_S = 600.0
+_STEP_S = 1.0
+_SUBMERGED_DEPTH_M = 0.3
+_R_EARTH_M = 6371008.8
+# the least prior std of each calibration state: what no crew knows better
+_FLOOR_CURRENT_MPS = 0.02
+_FLOOR_BIAS_DEG = 0.5
+_FLOOR_SCALE = 0.01
+
+
+@dataclass(frozen=True, slots=True)
+class Bound:
+    rms_m: float  # sqrt of the mean, over the submerged steps, of the position variance
+    steps: int
+    ranges: int  # ranges the ideal detector kept
+
+
+def _ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
+    dlon = (lon - lon0 + 180.0) % 360.0 - 180.0
+    return (
+        math.radians(lat - lat0) * _R_EARTH_M,
+        math.radians(dlon) * _R_EARTH_M * math.cos(math.radians(lat0)),
+    )
+
+
+def _truth_current_rate(m: Mission, i: int, j: int) -> float:
+    """Squared rate of change (per axis, mean of the two) of the true current from i to j."""
+    a, b = m.truth[i], m.truth[j]
+    dt = max(b.t - a.t, 1e-9)
+    return 0.5 * (((b.current_n - a.current_n) / dt) ** 2 + ((b.current_e - a.current_e) / dt) ** 2)
+
+
+def mission_bound(m: Mission, cfg: Config) -> Bound:
+    sc = m.scenario
+    s = sc.sensors
+    tr = m.truth
+    rate = s.rate_hz
+    stride = max(1, round(_STEP_S * rate))
+    lat0, lon0 = tr[0].lat, tr[0].lon
+
+    # beacons and the states of their position errors
+    fixed = list(sc.acoustics.transponders)
+    names = [tp.name for tp in fixed] if fixed else ["udb"]
+    where: dict[str, tuple[float, float, float]] = {}
+    for tp in fixed:
+        where[tp.name] = (tp.north_m, tp.east_m, tp.depth_m)
+    n_states = 6 + 2 * len(names)
+    col = {name: 6 + 2 * k for k, name in enumerate(names)}
+
+    # priors: each calibration state's std is the truth's own size (an estimator that
+    # knows how large the error is, not what it is), with a floor
+    c_true = math.hypot(tr[0].current_n, tr[0].current_e) / math.sqrt(2.0)
+    bias_true = math.radians(abs(s.compass_bias_deg) + sum(abs(x) for x in s.compass_deviation_deg))
+    scale_true = abs(cfg.navigation.speed.rpm_per_mps / s.rpm_per_mps - 1.0)
+    P = np.zeros((n_states, n_states))
+    P[0, 0] = P[1, 1] = 1e8  # no position until the first fix
+    P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
+    P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
+    P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
+    b = sc.boat
+    for name in names:
+        k = col[name]
+        std = next((tp.survey_std_m for tp in fixed if tp.name == name), b.gps_std_m)
+        P[k, k] = P[k + 1, k + 1] = max(std, 1e-3) ** 2
+
+    sig_psi = math.radians(s.compass_noise_deg)
+    sig_u = s.rpm_noise / s.rpm_per_mps
+    swing_var = min(b.swing_m**2, (0.2 * b.swing_m) ** 2 * (1.0 / rate) / (1.0 - 0.98**2))
+    r_var = sc.acoustics.range_noise_m**2 + (0.0 if fixed else swing_var)
+    phi_boat = math.exp(-_STEP_S / b.gps_corr_s)
+
+    # measurements, in time order: ("gps", t, std) and ("range", t, beacon)
+    meas: list[tuple[float, str, float | str]] = []
+    for rec in m.records:
+        if isinstance(rec, Gps) and rec.lat is not None:
+            hdop = rec.hdop or 1.0
+            warm = max(0.0, (hdop - 1.0) / 3.0)
+            meas.append((rec.t, "gps", s.gps_std_m + warm * s.gps_warmup_std_m))
+    for t, name in m.channel.clean:
+        if name in col:
+            meas.append((t, "range", name))
+    meas.sort(key=lambda x: x[0])
+    first_fix = next((t for t, kind, _ in meas if kind == "gps"), None)
+    if first_fix is None:
+        return Bound(math.nan, 0, 0)
+
+    sub_var: list[float] = []
+    used = 0
+    mi = 0
+    started = False
+    for i in range(0, len(tr) - stride, stride):
+        a = tr[i]
+        t_next = tr[i + stride].t
+        # measurements in [a.t, t_next)
+        while mi < len(meas) and meas[mi][0] < t_next:
+            t, kind, arg = meas[mi]
+            mi += 1
+            if kind == "gps":
+                started = True
+                H = np.zeros((2, n_states))
+                H[0, 0] = H[1, 1] = 1.0
+                S = H @ P @ H.T + np.eye(2) * float(arg) ** 2  # type: ignore[arg-type]
+                P = P - P @ H.T @ np.linalg.solve(S, H @ P)
+            elif started:
+                j = min(len(tr) - 1, int(round(t * rate)))
+                v = tr[j]
+                pn, pe = _ne(lat0, lon0, v.lat, v.lon)
+                if fixed:
+                    bn, be, bdepth = where[str(arg)]
+                else:
+                    bn, be = _ne(lat0, lon0, v.boat_lat, v.boat_lon)
+                    bdepth = b.transducer_depth_m
+                dn, de, dz = pn - bn, pe - be, v.depth - bdepth
+                slant = math.sqrt(dn * dn + de * de + dz * dz)
+                if slant < 1e-3:
+                    continue
+                h = np.zeros(n_states)
+                h[0], h[1] = dn / slant, de / slant
+                k = col[str(arg)]
+                h[k], h[k + 1] = -h[0], -h[1]
+                Ph = P @ h
+                P = P - np.outer(Ph, Ph) / (float(h @ Ph) + r_var)
+                used += 1
+        if started and a.depth >= _SUBMERGED_DEPTH_M:
+            sub_var.append(float(P[0, 0] + P[1, 1]))
+        # propagate over the step with the Jacobians at the truth
+        dt = t_next - a.t
+        psi, u = math.radians(a.heading_deg), a.speed_mps
+        c, sn = math.cos(psi), math.sin(psi)
+        F = np.eye(n_states)
+        F[0, 2] = F[1, 3] = dt
+        F[0, 4], F[1, 4] = -u * sn * dt, u * c * dt
+        F[0, 5], F[1, 5] = u * c * dt, u * sn * dt
+        Q = np.zeros((n_states, n_states))
+        if u > 0.0:
+            var_along = sig_u**2 / rate * dt
+            var_cross = (u * sig_psi) ** 2 / rate * dt
+            Q[0, 0] = var_along * c * c + var_cross * sn * sn
+            Q[1, 1] = var_along * sn * sn + var_cross * c * c
+            Q[0, 1] = Q[1, 0] = (var_along - var_cross) * c * sn
+        Q[2, 2] = Q[3, 3] = _truth_current_rate(m, i, i + stride) * CURRENT_MEMORY_S * dt
+        if not fixed:
+            k = col["udb"]
+            F[k, k] = F[k + 1, k + 1] = phi_boat
+            Q[k, k] = Q[k + 1, k + 1] = b.gps_std_m**2 * (1.0 - phi_boat**2)
+        P = F @ P @ F.T + Q
+        P = 0.5 * (P + P.T)
+    if not sub_var:
+        return Bound(math.nan, 0, used)
+    return Bound(math.sqrt(float(np.mean(sub_var))), len(sub_var), used)
