@@ -4,12 +4,16 @@ A shore-side bridge: it subscribes to ``auv/*/nav/**`` over zenoh and serves
 Foxglove's WebSocket protocol with the Foxglove SDK's own server, so an operator
 opens Foxglove (``ws://127.0.0.1:8765``) and sees every vehicle on the Map panel as
 it navigates.  Per vehicle: ``/<vehicle>/estimate`` (``foxglove.LocationFix`` with
-its covariance), ``/<vehicle>/range`` and ``/<vehicle>/health`` (JSON).  It binds to
-127.0.0.1 unless told otherwise: the operator's own machine, not the ship's network.
+its covariance), ``/<vehicle>/range``, ``/<vehicle>/health`` and ``/<vehicle>/advisory``
+(JSON, with their fields' schema from navd/schema.py, for plots).  A vehicle silent for
+``SILENT_S`` gets a ``/<vehicle>/log`` warning and a line on stderr, once, so a
+frozen marker on the map is not mistaken for a live one.  It binds to 127.0.0.1
+unless told otherwise: the operator's own machine, not the ship's network.
 """
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from typing import Any
@@ -17,9 +21,14 @@ from typing import Any
 from navd.client import open_session
 from navd.formats import jsonlines
 from navd.formats.foxglove_mcap import location_fix
+from navd.formats.jsonschema import schema_of
+from navd.schema import Advisory, Health, RangeDecision
 from navd.zenohconf import read_zenoh_file
 
 DEFAULT_PORT = 8765
+#: a vehicle that published nothing for this long is said to be silent (health is 1 Hz)
+SILENT_S = 5.0
+_JSON_KINDS: dict[str, type] = {"range": RangeDecision, "health": Health, "advisory": Advisory}
 
 
 class Bridge:
@@ -41,6 +50,8 @@ class Bridge:
         self._lock = threading.Lock()
         self._channels: dict[str, Any] = {}
         self.messages = 0
+        self._heard: dict[str, float] = {}  # vehicle: monotonic time of its last message
+        self._silent: set[str] = set()
         self._sub = self.session.declare_subscriber("auv/*/nav/**", self._on_sample)
 
     @property
@@ -55,8 +66,12 @@ class Bridge:
                     from foxglove.channels import LocationFixChannel
 
                     ch = LocationFixChannel(topic, context=self.ctx)
+                elif kind == "log":
+                    from foxglove.channels import LogChannel
+
+                    ch = LogChannel(topic, context=self.ctx)
                 else:
-                    schema = {"type": "object", "title": topic, "additionalProperties": True}
+                    schema = schema_of(_JSON_KINDS[kind], title=topic)
                     ch = self._fg.Channel(
                         topic, schema=schema, message_encoding="json", context=self.ctx
                     )
@@ -65,7 +80,7 @@ class Bridge:
 
     def _on_sample(self, sample: Any) -> None:
         parts = str(sample.key_expr).split("/")  # auv/<vehicle>/nav/<kind>
-        if len(parts) != 4 or parts[3] not in ("estimate", "range", "health"):
+        if len(parts) != 4 or parts[3] not in ("estimate", *_JSON_KINDS):
             return
         vehicle, kind = parts[1], parts[3]
         try:
@@ -85,6 +100,36 @@ class Bridge:
         except (KeyError, TypeError, ValueError):
             return  # not navd's schema: another publisher under auv/*
         self.messages += 1
+        with self._lock:
+            self._heard[vehicle] = time.monotonic()
+            came_back = vehicle in self._silent
+            self._silent.discard(vehicle)
+        if came_back:
+            self._say(vehicle, "info", f"{vehicle} is publishing again")
+
+    def check_silence(self, now: float | None = None) -> list[str]:
+        """Vehicles that fell silent since the last check; each is said once."""
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            gone = [
+                v for v, t in self._heard.items() if now - t > SILENT_S and v not in self._silent
+            ]
+            self._silent.update(gone)
+        for v in gone:
+            self._say(
+                v, "warning", f"{v} silent for {SILENT_S:.0f} s: its last estimate is not live"
+            )
+        return gone
+
+    def _say(self, vehicle: str, level: str, text: str) -> None:
+        from foxglove.messages import Log, LogLevel, Timestamp
+
+        print(f"navd foxglove: {text}", file=sys.stderr, flush=True)
+        t_ns = time.time_ns()
+        stamp = Timestamp(sec=t_ns // 1_000_000_000, nsec=t_ns % 1_000_000_000)
+        lv = LogLevel.Warning if level == "warning" else LogLevel.Info
+        msg = Log(timestamp=stamp, level=lv, message=text, name="navd foxglove")
+        self._channel(f"/{vehicle}/log", "log").log(msg, log_time=t_ns)
 
     def close(self) -> None:
         try:
@@ -107,6 +152,7 @@ def serve(
     try:
         while t_end is None or time.monotonic() < t_end:
             time.sleep(0.5)
+            bridge.check_silence()
     except KeyboardInterrupt:
         pass
     finally:

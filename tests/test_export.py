@@ -98,6 +98,15 @@ def test_mcap_holds_what_the_log_holds(exported: Path) -> None:
     assert counts["/sensors/rpm"] == by_type["rpm"]
     assert counts["/sensors/range"] == counts["/nav/range"] == by_type["range"]
     assert counts["/nav/log"] >= 3  # mode changes, integrity, the surfacing
+    # JSON channels carry their fields' schema (navd/schema.py), for a viewer's plots
+    import json
+
+    by_topic = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    rng = json.loads(by_topic["/nav/range"].data)
+    assert rng["properties"]["accepted"] == {"type": "boolean"}
+    assert {"type": "number"} in rng["properties"]["residual_m"]["anyOf"]
+    head = json.loads(by_topic["/sensors/heading"].data)
+    assert head["properties"]["deg"] == {"type": "number"}
 
 
 def test_a_daemon_logs_ticks_export_to_mcap(tmp_path: Path) -> None:

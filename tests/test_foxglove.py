@@ -7,18 +7,22 @@ import asyncio
 import json
 import struct
 import subprocess
+import time
 from pathlib import Path
 
 import websockets
 
-from navd.foxglove_bridge import Bridge
+from navd.foxglove_bridge import SILENT_S, Bridge
 from navd.hil.bench_vehicle import BenchVehicle
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 
 
-async def _receive(port: int, topics: list[str], timeout: float) -> dict[str, bytes]:
-    """Subscribe to ``topics`` once advertised; the first message of each."""
+async def _receive(
+    port: int, topics: list[str], timeout: float, schemas: dict[str, str] | None = None
+) -> dict[str, bytes]:
+    """Subscribe to ``topics`` once advertised; the first message of each (and, into
+    ``schemas``, the schema each was advertised with)."""
     got: dict[str, bytes] = {}
     subs: dict[int, str] = {}
     async with websockets.connect(
@@ -34,6 +38,8 @@ async def _receive(port: int, topics: list[str], timeout: float) -> dict[str, by
                         continue
                     want = [c for c in msg["channels"] if c["topic"] in topics]
                     for c in want:
+                        if schemas is not None:
+                            schemas[c["topic"]] = c.get("schema", "")
                         sid = len(subs) + 1
                         subs[sid] = c["topic"]
                         await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
@@ -50,13 +56,24 @@ def test_an_operator_sees_the_vehicle_live(tmp_path: Path) -> None:
     v = BenchVehicle(tmp_path / "v", subprocess.DEVNULL)
     bridge = Bridge([f"tcp/127.0.0.1:{v.port}"], port=0)
     try:
-        got = asyncio.run(
-            _receive(bridge.port, ["/sim690s/estimate", "/sim690s/health"], timeout=60.0)
-        )
+        schemas: dict[str, str] = {}
+        topics = ["/sim690s/estimate", "/sim690s/health", "/sim690s/advisory"]
+        got = asyncio.run(_receive(bridge.port, topics, timeout=60.0, schemas=schemas))
         assert len(got["/sim690s/estimate"]) > 20  # a LocationFix, encoded by the SDK
         health = json.loads(got["/sim690s/health"])
         assert health["type"] == "health" and "devices" in health
+        assert json.loads(got["/sim690s/advisory"])["type"] == "advisory"
+        # JSON channels say their fields, so Foxglove offers them for plots
+        props = json.loads(schemas["/sim690s/health"])["properties"]
+        assert props["ok"] == {"type": "boolean"} and "devices" in props
         assert bridge.messages > 0
+        # the vehicle stops: the bridge says so once, instead of showing its last fix as live
+        assert bridge.check_silence() == []
+        v.stop()
+        v.kill()
+        time.sleep(SILENT_S + 1.5)
+        assert bridge.check_silence() == ["sim690s"]
+        assert bridge.check_silence() == []
     finally:
         bridge.close()
         v.stop()

@@ -18,7 +18,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from navd.formats.jsonschema import schema_of
 from navd.formats.mlog import TYPE_NAMES, record_to_json
+from navd.schema import Health, RangeDecision
 
 if TYPE_CHECKING:
     from navd.analysis.export import Mission
@@ -103,10 +105,10 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
 
         json_channels: dict[str, Any] = {}
 
-        def as_json(topic: str, t: float, body: dict[str, Any]) -> None:
+        def as_json(topic: str, t: float, body: dict[str, Any], cls: type) -> None:
             ch = json_channels.get(topic)
             if ch is None:
-                schema = {"type": "object", "title": topic, "additionalProperties": True}
+                schema = schema_of(cls, title=topic)
                 ch = json_channels[topic] = foxglove.Channel(
                     topic, schema=schema, message_encoding="json", context=ctx
                 )
@@ -114,12 +116,13 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
             counts[topic] = counts.get(topic, 0) + 1
 
         for d in m.decisions:
-            as_json("/nav/range", d["t"], d)
+            as_json("/nav/range", d["t"], d, RangeDecision)
         for h in m.health:
-            as_json("/nav/health", h["t"], h)
+            as_json("/nav/health", h["t"], h, Health)
         for rec in m.records:
             if type(rec) in TYPE_NAMES:  # not a daemon log's ticks: its steps, not readings
-                as_json(f"/sensors/{TYPE_NAMES[type(rec)]}", rec.t, record_to_json(rec))
+                topic = f"/sensors/{TYPE_NAMES[type(rec)]}"
+                as_json(topic, rec.t, record_to_json(rec), type(rec))
 
         log = LogChannel("/nav/log", context=ctx)
         levels = {"info": LogLevel.Info, "warning": LogLevel.Warning, "error": LogLevel.Error}
