@@ -172,6 +172,7 @@ class NavClient:
         self.prefix = f"auv/{vehicle}/nav"
         self.timeout_s = timeout_s
         self.stale_s = stale_s
+        self.connect = list(connect or [])
         if config_file is not None:
             config = read_zenoh_file(config_file, "zenoh config")
         self.user = _user(config)
@@ -209,8 +210,9 @@ class NavClient:
 
     def _no_answer(self) -> NoAnswer:
         who = f"user '{self.user}'" if self.user else "this session (no user)"
+        via = f" via {', '.join(self.connect)}" if self.connect else ""
         return NoAnswer(
-            f"no answer from {self.prefix} within {self.timeout_s:g} s: is navd up, "
+            f"no answer from {self.prefix}{via} within {self.timeout_s:g} s: is navd up, "
             f"and may {who} read it?"
         )
 

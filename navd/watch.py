@@ -41,6 +41,8 @@ def format_advisory(a: Advisory) -> str:
     )
 
 
+#: how long to wait for the first estimate before asking whether navd is there
+FIRST_ESTIMATE_S = 10.0
 #: a suggested heading or weak axis that moved less than this is the same advice
 ADVICE_STEP_DEG = 10.0
 
@@ -87,6 +89,8 @@ def watch(
     n = 0
     last_print = 0.0
     t_end = time.monotonic() + seconds if seconds else None
+    # no estimate at all this long after the start: ask navd, rather than wait forever
+    t_ask: float | None = time.monotonic() + FIRST_ESTIMATE_S
     try:
         nav = NavClient(cfg.vehicle.name, _endpoints(cfg, connect), config_file=zenoh_file)
     except NavUnavailable as exc:
@@ -98,6 +102,13 @@ def watch(
             while (count is None or n < count) and (t_end is None or time.monotonic() < t_end):
                 wake.wait(0.1)
                 wake.clear()
+                if t_ask is not None and n == 0 and time.monotonic() > t_ask:
+                    t_ask = None
+                    try:
+                        nav.check()
+                    except NavUnavailable as exc:
+                        print(f"navd watch: {exc}", file=sys.stderr)
+                        return 1
                 while got and (count is None or n < count):
                     x = got.popleft()
                     if isinstance(x, Advisory):

@@ -306,3 +306,25 @@ def test_navd_foxglove_reads_its_zenoh_file_as_the_others_do(tmp_path) -> None:
     )
     assert r.returncode == 2 and "--zenoh-config" in r.stderr and "nope.json5" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_navd_watch_with_no_navd_behind_the_endpoint_says_so(tmp_path) -> None:
+    """A zenoh session answers on the endpoint but no navd does: watch --count 1 does not
+    wait forever; it says which vehicle it asked, and where."""
+    import zenoh
+
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    conf = zenoh.Config.from_json5(json.dumps({"mode": "peer", "listen": {"endpoints": [ep]}}))
+    other = zenoh.open(conf)
+    try:
+        cfg = tmp_path / "navd.yaml"
+        cfg.write_text(f"vehicle: {{name: nobody}}\nzenoh: {{connect: ['{ep}']}}\n")
+        t0 = time.monotonic()
+        r = subprocess.run(
+            [sys.executable, "-m", "navd", "watch", "--config", str(cfg), "--count", "1"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert r.returncode == 1 and time.monotonic() - t0 < 40
+        assert "auv/nobody/nav" in r.stderr and ep in r.stderr and "Traceback" not in r.stderr
+    finally:
+        other.close()
