@@ -108,3 +108,21 @@ def test_ranges_go_on_through_a_location_outage(tmp_path) -> None:
     assert all(d.get("beacon_predicted_s") for d in decisions)
     assert all(d["reason"] != "no_beacon_position" for d in decisions)
     assert sum(d["accepted"] for d in decisions) >= 0.8 * len(decisions)
+
+
+def test_a_boat_that_wanders_is_not_predicted() -> None:
+    """Holding station, turning every way: its reports fit no line, its velocity says
+    nothing of where it goes next, and ranges wait for the line to return."""
+    import random
+
+    rng = random.Random(4)
+    r = _resolver(position_std_m=3.0)
+    n = e = 0.0
+    heading = 0.0
+    for k in range(30):
+        heading += rng.gauss(0.0, 1.5)  # radians every 10 s: a new course each time
+        n += 8.0 * math.cos(heading)
+        e += 8.0 * math.sin(heading)
+        lat, lon = geodesy.offset_position(math.radians(LAT0), math.radians(LON0), n, e)
+        r.resolve(10.0 * k, "udb", math.degrees(lat), math.degrees(lon), 2.0)
+    assert r.resolve(300.0, "udb", None, None, None) == (None, "no_beacon_position")

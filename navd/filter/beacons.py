@@ -4,7 +4,8 @@ When the boat's location line is down (its GPS, or the shore link that forwards 
 replies come without a position.  The beacon is then predicted from the positions it
 reported over the last ``_FIT_S`` seconds, at the velocity they show, with an
 uncertainty that grows with the time since the last one (the velocity's own error,
-and a boat that changes speed or course), for at most ``beacons.<name>.predict_max_s``.
+and a boat that changes speed or course), for at most ``beacons.<name>.predict_max_s``,
+and only a boat whose reports lie on a straight line (one that holds a course).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ _POSITION_SLACK_M = 30.0
 _FIT_S = 300.0
 _FIT_MIN = 3
 _BOAT_ACCEL_MPS2 = 0.005
+_MISFIT_SIGMAS = 2.0  # reports further than this from the fitted line: not predicted
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,6 +131,15 @@ class BeaconResolver:
         ve = sum((x - tm) * (y - em) for x, y in zip(ts, es, strict=True)) / stt
         if math.hypot(vn, ve) > self.max_speed:
             return None, "no_beacon_position"
+        # A boat that holds a course fits a straight line to within its GPS error; one
+        # that wanders (holding station, turning) does not, and its velocity says
+        # nothing of where it is going: such a boat is not predicted.
+        misfit2 = sum(
+            (n - nm - vn * (x - tm)) ** 2 + (e - em - ve * (x - tm)) ** 2
+            for x, n, e in zip(ts, ns, es, strict=True)
+        ) / (2 * k)
+        if misfit2 > (_MISFIT_SIGMAS * max(spec.position_std_m, 1.0)) ** 2:
+            return None, "no_beacon_position"
         # the fitted line through the mean, carried to now
         dn = nm + vn * (age - tm)
         de = em + ve * (age - tm)
@@ -136,7 +147,13 @@ class BeaconResolver:
         # The reports' errors are correlated over minutes, so the velocity is known
         # about as well as from two independent positions the fit's span apart.
         v_std = math.sqrt(2.0) * spec.position_std_m / span
-        var = (v_std * age) ** 2 + _BOAT_ACCEL_MPS2**2 * age**3 / 3.0
+        # what the line does not explain of the reports grows as it is carried on, and so
+        # does the difference between the velocities of the window's two halves (a boat
+        # whose course wanders has a velocity of the moment that its average is not)
+        unexplained = max(0.0, misfit2 - spec.position_std_m**2) * (1.0 + age / span) ** 2
+        dv2 = _half_velocity_change2(ts, ns, es, tm)
+        var = (v_std * age) ** 2 + _BOAT_ACCEL_MPS2**2 * age**3 / 3.0 + unexplained
+        var += dv2 * age * age
         return (
             BeaconFix(
                 lat,
@@ -150,3 +167,31 @@ class BeaconResolver:
             ),
             "ok",
         )
+
+
+def _slope(ts: list[float], ys: list[float]) -> float | None:
+    if len(ts) < 2:
+        return None
+    tm = sum(ts) / len(ts)
+    stt = sum((x - tm) ** 2 for x in ts)
+    if stt <= 0.0:
+        return None
+    ym = sum(ys) / len(ys)
+    return sum((x - tm) * (y - ym) for x, y in zip(ts, ys, strict=True)) / stt
+
+
+def _half_velocity_change2(
+    ts: list[float], ns: list[float], es: list[float], t_mid: float
+) -> float:
+    """Squared change between the velocities fitted to the earlier and later half."""
+    early = [i for i, x in enumerate(ts) if x <= t_mid]
+    late = [i for i, x in enumerate(ts) if x > t_mid]
+    vs = []
+    for idx in (early, late):
+        vn = _slope([ts[i] for i in idx], [ns[i] for i in idx])
+        ve = _slope([ts[i] for i in idx], [es[i] for i in idx])
+        if vn is None or ve is None:
+            return 0.0
+        vs.append((vn, ve))
+    (a_n, a_e), (b_n, b_e) = vs
+    return (a_n - b_n) ** 2 + (a_e - b_e) ** 2
