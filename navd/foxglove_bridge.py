@@ -26,6 +26,8 @@ from navd.schema import Advisory, Health, RangeDecision
 from navd.zenohconf import read_zenoh_file
 
 DEFAULT_PORT = 8765
+#: what the SDK's server accepts (foxglove-sdk's websocket handshake); not configurable
+SUBPROTOCOL = "foxglove.sdk.v1"
 #: a vehicle that published nothing for this long is said to be silent (health is 1 Hz)
 SILENT_S = 5.0
 _JSON_KINDS: dict[str, type] = {"range": RangeDecision, "health": Health, "advisory": Advisory}
@@ -147,7 +149,11 @@ def serve(
     zenoh_file: str | None = None,
 ) -> int:
     bridge = Bridge(connect, host, port, zenoh_file)
-    print(f"navd foxglove: ws://{host}:{bridge.port} (open it in Foxglove)", flush=True)
+    print(
+        f"navd foxglove: ws://{host}:{bridge.port} (open it in Foxglove; WebSocket "
+        f"subprotocol {SUBPROTOCOL} only, docs/tools.md lists the viewers that speak it)",
+        flush=True,
+    )
     t_end = time.monotonic() + seconds if seconds else None
     try:
         while t_end is None or time.monotonic() < t_end:
