@@ -213,10 +213,10 @@ def _rms(xs: list[float]) -> float:
 
 
 def bound_table(results: dict[str, dict[str, list[Any]]]) -> list[str]:
-    """Each scenario against its posterior Cramer-Rao bound (bench/bound.py)."""
+    """Each scenario against its posterior Cramer-Rao bound (navd/hil/bound.py)."""
     lines = [
         "Against the bound: *bound* = the posterior Cramer-Rao bound of each mission "
-        "(bench/bound.py), RMS over the submerged part, mean over the seeds; */ bound* = the "
+        "(navd/hil/bound.py), RMS over the submerged part, mean over the seeds; */ bound* = the "
         "RMS over the seeds of the default's RMS over that of the bound; *ok in99* = while "
         "integrity said ok, the fraction of that time the truth lies inside the 99 % ellipse; "
         "*ok* = the fraction of submerged time integrity said ok.",

@@ -235,7 +235,7 @@ class Result:
     default: Score | None
     thesis: Score | None
     error: str = ""  # a replay that failed (an exception in the navigator)
-    bound_m: float = math.nan  # the mission's Cramer-Rao bound (bench/bound.py), RMS
+    bound_m: float = math.nan  # the mission's Cramer-Rao bound (navd/hil/bound.py), RMS
 
     @property
     def diverged(self) -> bool:
@@ -331,7 +331,7 @@ def table(results: list[Result], n: int) -> str:
     lines = [
         f"{n} missions, seeds 1..{n}, each with its own drawn class and conditions",
         "(bench/robustness.py). RMS over the submerged part, in metres; *bound* = the",
-        "mission's posterior Cramer-Rao bound (bench/bound.py), mean over the class;",
+        "mission's posterior Cramer-Rao bound (navd/hil/bound.py), mean over the class;",
         "*/ bound* = the class's RMS over missions of the default's RMS, over that of",
         "the bound; *in95* = fraction of submerged time the truth lies inside the 95 %",
         "ellipse; *ok in99* = while integrity said ok, the fraction of that time the",
@@ -355,7 +355,8 @@ def table(results: list[Result], n: int) -> str:
                 else "no output"
             )
             lines.append(
-                f"- seed {r.draw.seed} ({r.draw.kind}, outliers {r.draw.outliers:.0%}, "
+                f"- seed {r.draw.seed} ({r.draw.cls}, {r.draw.kind}, "
+                f"outliers {r.draw.outliers:.0%}, "
                 f"drops {r.draw.drops:.0%}): {what}"
             )
     return "\n".join(lines)
