@@ -226,10 +226,10 @@ def bound_table(results: dict[str, dict[str, list[Any]]]) -> list[str]:
     ]
     for name, r in results.items():
         d, b = r["default"], r["bound"]
-        ratio = _rms([x.rms_m for x in d]) / _rms(b) if b else math.nan
+        ratio = f"{_rms([x.rms_m for x in d]) / _rms(b):.2f}" if b else "n/a"
         bound = f"{_m(b):.1f}" if b else "n/a (DVL)"
         lines.append(
-            f"| {name} | {_m([x.rms_m for x in d]):.1f} | {bound} | {ratio:.2f} "
+            f"| {name} | {_m([x.rms_m for x in d]):.1f} | {bound} | {ratio} "
             f"| {_m([x.inside95 for x in d]):.2f} | {_m([x.ok_inside99 for x in d]):.3f} "
             f"| {_m([x.ok_fraction for x in d]):.2f} |"
         )
