@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -211,7 +212,7 @@ def test_wrong_credentials_and_silence_say_which(tmp_path) -> None:
         try:
             with pytest.raises(
                 NoAnswer,
-                match="no answer from auv/no-such-vehicle/nav within 1 s: "
+                match=f"no answer from auv/no-such-vehicle/nav via {re.escape(ep)} within 1 s: "
                 "is navd up, and may user 'observer' read it",
             ):
                 nobody.check()

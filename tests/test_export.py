@@ -223,6 +223,15 @@ def test_a_live_daemons_log_exports_and_every_json_message_fits_its_schema(
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
     etree.XMLSchema(etree.parse(str(XSD))).assertValid(etree.parse(str(tmp_path / "live.gpx")))
+    # and an independent GPX reader sees the same tracks, each point with its time
+    import gpxpy
+
+    gpx = gpxpy.parse((tmp_path / "live.gpx").read_text())
+    tracks = {t.name: t for t in gpx.tracks}
+    assert {"estimate", "dead reckoning", "GPS fixes"} <= set(tracks)
+    est_points = [p for seg in tracks["estimate"].segments for p in seg.points]
+    assert len(est_points) == sum(1 for _ in csv.DictReader((tmp_path / "l.csv").open()))
+    assert all(p.time is not None for p in est_points)
     seen: Counter[str] = Counter()
     with out.open("rb") as fh:
         for schema, channel, message in make_reader(fh).iter_messages():
