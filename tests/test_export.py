@@ -218,7 +218,8 @@ def test_a_live_daemons_log_exports_and_every_json_message_fits_its_schema(
     out = tmp_path / "live.mcap"
     r = subprocess.run(
         [sys.executable, "-m", "navd", "export", str(v.logfile()), "--config", str(v.config),
-         "--mcap", str(out), "--gpx", str(tmp_path / "live.gpx"), "--csv", str(tmp_path / "l.csv")],
+         "--mcap", str(out), "--gpx", str(tmp_path / "live.gpx"), "--csv", str(tmp_path / "l.csv"),
+         "--kml", str(tmp_path / "live.kml")],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
@@ -232,6 +233,18 @@ def test_a_live_daemons_log_exports_and_every_json_message_fits_its_schema(
     est_points = [p for seg in tracks["estimate"].segments for p in seg.points]
     assert len(est_points) == sum(1 for _ in csv.DictReader((tmp_path / "l.csv").open()))
     assert all(p.time is not None for p in est_points)
+    # and an independent KML reader: every track segment a line (or a point) with its time
+    from fastkml import KML as FastKML
+
+    def features(f):
+        for x in getattr(f, "features", None) or []:
+            yield x
+            yield from features(x)
+
+    marks = [x for x in features(FastKML.parse(str(tmp_path / "live.kml")))
+             if type(x).__name__ == "Placemark" and x.name in tracks]  # fmt: skip
+    assert {m.name for m in marks} == set(tracks)
+    assert all(m.times is not None and m.geometry is not None for m in marks)
     seen: Counter[str] = Counter()
     with out.open("rb") as fh:
         for schema, channel, message in make_reader(fh).iter_messages():
