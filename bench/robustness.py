@@ -5,8 +5,12 @@ One fixed draw of sensor errors can favour dead reckoning or flatter the filter
 and length, drops in bursts, corrupted beacon positions, compass bias, RPM-map
 error, current (often across the track and more than half the vehicle's speed),
 a boat anchored, drifting or motoring, a beacon 50 m to 2 km away, 10 to 60
-minutes, and the single moving beacon or 2- and 3-transponder LBL.  Seeds are a
+minutes, and the single moving beacon or 2- and 3-transponder LBL.  Each mission is
+first drawn into a class (``CLASSES``): the base draw above, or priors 3 to 10 times
+too small, short straight runs near the beacon, 2 to 3 hour surveys with surfacings,
+a tidal stream that turns, the boat's location line down for minutes.  Seeds are a
 fixed list, so the table is reproducible; none of the bundled scenarios is used.
+Each mission is also compared with its posterior Cramer-Rao bound (navd/hil/bound.py).
 
 Each mission goes through the ``navd replay`` command line in the default and
 thesis modes (dead reckoning comes with the default output) and is scored against
