@@ -87,8 +87,11 @@ def test_gpsd_source_gives_the_serial_decoders_fixes() -> None:
             s for s in serial if abs(s.lat - rec.lat) < 1e-7 and abs(s.lon - rec.lon) < 1e-7
         ]
         assert match, rec
+        assert rec.fix == match[0].fix
+        if rec.alt is None:
+            continue  # gpsd may report an epoch from its RMC before its GGA: no height yet
         assert rec.alt == pytest.approx(match[0].alt, abs=0.01)  # altHAE: MSL + separation
         assert rec.alt_msl == pytest.approx(match[0].alt_msl, abs=0.01)
-        assert rec.fix == match[0].fix
+    assert sum(r.alt is not None for r in got) >= len(got) // 2
     # the receiver lost its fix at the end of the capture: gpsd says mode 1, navd "no fix"
     assert any(isinstance(r, Gps) and r.fix == 0 for r in host.fed)
