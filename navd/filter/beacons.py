@@ -121,14 +121,12 @@ class BeaconResolver:
             ns.append(n)
             es.append(e)
         k = len(ts)
-        tm = sum(ts) / k
-        stt = sum((x - tm) ** 2 for x in ts)
         span = ts[-1] - ts[0]
-        if stt <= 0.0 or span <= 0.0:
+        vn, ve = _slope(ts, ns), _slope(ts, es)
+        if vn is None or ve is None or span <= 0.0:
             return None, "no_beacon_position"
+        tm = sum(ts) / k
         nm, em = sum(ns) / k, sum(es) / k
-        vn = sum((x - tm) * (y - nm) for x, y in zip(ts, ns, strict=True)) / stt
-        ve = sum((x - tm) * (y - em) for x, y in zip(ts, es, strict=True)) / stt
         if math.hypot(vn, ve) > self.max_speed:
             return None, "no_beacon_position"
         # A boat that holds a course fits a straight line to within its GPS error; one
