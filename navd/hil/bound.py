@@ -34,8 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navd import geodesy
 from navd.config import Config
-from navd.hil.world import Mission
+from navd.hil.world import SWING_MEMORY, SWING_STEP, Mission
 from navd.records import Gps
 
 # A current that changes is a random walk with the variance it would build in this long
@@ -43,7 +44,6 @@ from navd.records import Gps
 CURRENT_MEMORY_S = 600.0
 _STEP_S = 1.0
 _SUBMERGED_DEPTH_M = 0.3
-_R_EARTH_M = 6371008.8
 # the least prior std of each calibration state: what no crew knows better
 _FLOOR_CURRENT_MPS = 0.02
 _FLOOR_BIAS_DEG = 0.5
@@ -58,11 +58,11 @@ class Bound:
 
 
 def _ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
-    dlon = (lon - lon0 + 180.0) % 360.0 - 180.0
-    return (
-        math.radians(lat - lat0) * _R_EARTH_M,
-        math.radians(dlon) * _R_EARTH_M * math.cos(math.radians(lat0)),
+    """North and east of (lat0, lon0), metres, degrees in (navd's local tangent plane)."""
+    e, n, _ = geodesy.enu_offset(
+        math.radians(lat0), math.radians(lon0), 0.0, math.radians(lat), math.radians(lon), 0.0
     )
+    return n, e
 
 
 def _truth_current_rate(m: Mission, i: int, j: int) -> float:
@@ -107,7 +107,9 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
 
     sig_psi = math.radians(s.compass_noise_deg)
     sig_u = s.rpm_noise / s.rpm_per_mps
-    swing_var = min(b.swing_m**2, (0.2 * b.swing_m) ** 2 * (1.0 / rate) / (1.0 - 0.98**2))
+    # the swing's stationary variance per axis (an AR(1) process, held within swing_m)
+    step2 = (SWING_STEP * b.swing_m) ** 2 / rate
+    swing_var = min(b.swing_m**2, step2 / (1.0 - SWING_MEMORY**2))
     r_var = sc.acoustics.range_noise_m**2 + (0.0 if fixed else swing_var)
     phi_boat = math.exp(-_STEP_S / b.gps_corr_s)
 

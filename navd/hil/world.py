@@ -43,6 +43,10 @@ _GEOD = Geodesic.WGS84
 # WGS-84 geographic 3-D (EPSG:4979) to geocentric (EPSG:4978), PROJ as the reference.
 _ECEF = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
 _GPS_SURFACE_DEPTH_M = 0.2  # the antenna is out of the water above this depth
+# the transducer's swing on its rope: an AR(1) per step, this memory and step size (a
+# fraction of swing_m per square-root second), held within swing_m
+SWING_MEMORY = 0.98
+SWING_STEP = 0.2
 
 
 @dataclass(frozen=True, slots=True)
@@ -205,7 +209,8 @@ def simulate(sc: Scenario, seed: int) -> Mission:
         blat, blon = _offset(boat_lat, boat_lon, gps_err[0], gps_err[1])
         boat_gps.append((blat, blon))
         if b.swing_m > 0:
-            swing = 0.98 * swing + rng.normal(0.0, 0.2 * b.swing_m * math.sqrt(dt), 2)
+            step = SWING_STEP * b.swing_m * math.sqrt(dt)
+            swing = SWING_MEMORY * swing + rng.normal(0.0, step, 2)
             norm = float(np.hypot(*swing))
             if norm > b.swing_m:
                 swing *= b.swing_m / norm
