@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
+from typing import Any
 
 import yaml
 
-from navd.config import deep_merge
+from navd.analysis.replay import replay
+from navd.analysis.score import read_jsonl
+from navd.config import deep_merge, load_config
 
 
 def mode_config(mission_dir: Path, mode: str) -> Path:
@@ -16,6 +20,21 @@ def mode_config(mission_dir: Path, mode: str) -> Path:
         crew = yaml.safe_load((mission_dir / "config.yaml").read_text()) or {}
         cfg.write_text(yaml.safe_dump(deep_merge(crew, {"navigation": {"filter": mode}})))
     return cfg
+
+
+def replay_mission(
+    mission_dir: Path, mode: str, smooth: bool = False
+) -> tuple[list[dict[str, Any]], str]:
+    """What ``navd replay MISSION/measurements.jsonl --config <mode's>`` writes, and the
+    error it would end with ("" when none), run in this process: a worker that replays
+    hundreds of missions starts Python and imports navd once."""
+    out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
+    try:
+        cfg = load_config(mode_config(mission_dir, mode))
+        replay(mission_dir / "measurements.jsonl", cfg, out, smooth=smooth, err=io.StringIO())
+    except Exception as exc:  # a mission that makes navd raise is a result, not a crash
+        return [], f"{exc.__class__.__name__}: {exc}"
+    return read_jsonl(out), ""
 
 
 def write_section(path: Path, name: str, heading: str, body: str) -> None:

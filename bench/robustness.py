@@ -26,15 +26,14 @@ import math
 import random
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from bench.common import mode_config, report
+from bench.common import replay_mission, report
+from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.score import Score, read_jsonl, score
 from navd.config import load_config
 from navd.hil.bound import mission_bound
@@ -250,16 +249,6 @@ class Result:
         return d.surfacing_m > limit or d.current_rms_mps > DIVERGED_CURRENT_MPS
 
 
-def _replay(d: Path, mode: str) -> tuple[list[dict], str]:
-    out = d / f"out-{mode}.jsonl"
-    cmd = [sys.executable, "-m", "navd.cli", "replay", str(d / "measurements.jsonl")]
-    cmd += ["--config", str(mode_config(d, mode)), "--out", str(out)]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0 or "Traceback" in r.stderr:
-        return [], r.stderr.strip().splitlines()[-1] if r.stderr.strip() else f"exit {r.returncode}"
-    return read_jsonl(out), ""
-
-
 def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise."""
     dr = draw(seed)
@@ -269,8 +258,8 @@ def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
     write_mission(mission, d)
     b = mission_bound(mission, load_config(d / "config.yaml"))
     truth = read_jsonl(d / "truth.jsonl")
-    out_d, err_d = _replay(d, "default")
-    out_t, err_t = _replay(d, "thesis")
+    out_d, err_d = replay_mission(d, "default")
+    out_t, err_t = replay_mission(d, "thesis")
     result = Result(
         dr,
         score(out_d, truth) if out_d else None,
@@ -366,14 +355,11 @@ def table(results: list[Result], n: int) -> str:
     return "\n".join(lines)
 
 
-def redraw(seed: int, n: int, workers: int) -> int:
+def redraw(seed: int, n: int, jobs: int, scheduler: str | None) -> int:
     """Is a flagged mission's verdict its conditions', or its one draw of noise's?"""
     noise = [1000 + k for k in range(n)]
-    with (
-        tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp,
-        ProcessPoolExecutor(workers) as ex,
-    ):
-        results = list(ex.map(run_one, [seed] * n, [tmp] * n, noise))
+    with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
+        results = run_all(run_one, [seed] * n, [tmp] * n, noise, jobs=jobs, scheduler=scheduler)
     print(f"`python -m bench.robustness --redraw {seed} --missions {n}`: mission {seed}'s")
     print("conditions with other draws of the sensor and acoustic noise.\n")
     print(
@@ -398,7 +384,14 @@ def redraw(seed: int, n: int, workers: int) -> int:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--missions", type=int, default=120)
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument(
+        "--jobs", type=int, default=default_jobs(), help="worker processes (default: the cores)"
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the missions on this Dask scheduler's workers instead (tcp://host:8786)",
+    )
     p.add_argument("--write", help="BENCHMARKS.md to update")
     p.add_argument(
         "--redraw",
@@ -412,15 +405,15 @@ def main() -> int:
     p.add_argument("--missions-out", help="write one line per mission (JSON) to this file")
     args = p.parse_args()
     if args.redraw is not None:
-        return redraw(args.redraw, args.missions, args.workers)
+        return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
     seeds = list(range(1, args.missions + 1))
     if args.only:
         seeds = [s for s in seeds if draw(s).cls == args.only]
-    with (
-        tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp,
-        ProcessPoolExecutor(args.workers) as ex,
-    ):
-        results = list(ex.map(run_one, seeds, [tmp] * len(seeds)))
+    # each mission's files are written and read by the one worker that runs it
+    with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
+        results = run_all(
+            run_one, seeds, [tmp] * len(seeds), jobs=args.jobs, scheduler=args.scheduler
+        )
     if args.missions_out:
         with open(args.missions_out, "w", encoding="utf-8") as fh:
             for r in results:

@@ -59,10 +59,37 @@ def _refuse_overwriting(inputs: list[str], outputs: list[str | None]) -> None:
 def _cmd_replay(args: argparse.Namespace) -> int:
     from navd.analysis.replay import replay
 
+    if args.each:
+        return _replay_each(args)
+    if args.jobs is not None or args.scheduler:
+        raise ConfigError("--jobs and --scheduler replay several missions: add --each")
     _refuse_overwriting(list(args.input), [args.out])
     cfg = _config(args)
     replay(list(args.input), cfg, args.out, smooth=args.smooth, strict=args.strict)
     return 0
+
+
+def _replay_each(args: argparse.Namespace) -> int:
+    from navd.analysis.jobs import run_all
+    from navd.analysis.replay import outputs_for_each, replay_one
+
+    out_dir = Path(args.out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {out_dir}: with --each, a directory to write the outputs in")
+    outs = outputs_for_each(list(args.input), out_dir)
+    _refuse_overwriting(list(args.input), [str(o) for o in outs])
+    cfg = _config(args)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    n = len(outs)
+    said = run_all(
+        replay_one, list(args.input), [cfg] * n, outs, [args.smooth] * n, [args.strict] * n,
+        jobs=args.jobs, scheduler=args.scheduler,
+    )
+    failed = 0
+    for text in said:
+        sys.stderr.write(text)
+        failed += text.startswith("navd: ") or "\nnavd: " in text
+    return 1 if failed else 0
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -315,6 +342,19 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output JSON Lines")
     r.add_argument("--smooth", action="store_true", help="add an RTS smoothing pass")
     r.add_argument("--strict", action="store_true", help="the first malformed line is fatal")
+    r.add_argument(
+        "--each",
+        action="store_true",
+        help="every input is a mission of its own; --out is then a directory",
+    )
+    r.add_argument(
+        "--jobs", type=int, metavar="N", help="with --each: worker processes (default: the cores)"
+    )
+    r.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="with --each: run on this Dask scheduler's workers (tcp://host:8786)",
+    )
     r.set_defaults(func=_cmd_replay)
 
     rep = sub.add_parser("report", help="figures and summary of a replay output")

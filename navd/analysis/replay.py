@@ -6,6 +6,7 @@ The contract is ``shared/spec/replay-interface.md``; the formats are documented 
 
 from __future__ import annotations
 
+import io
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +15,7 @@ from typing import IO, Any
 from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.formats import jsonlines
-from navd.formats.mlog import MeasurementLog, Skipped, read_measurement_log
+from navd.formats.mlog import LogError, MeasurementLog, Skipped, read_measurement_log
 
 MAX_REPORTED_SKIPS = 20
 
@@ -101,3 +102,32 @@ def replay(
         file=err,
     )
     return result
+
+
+def outputs_for_each(inputs: list[str], out_dir: str | Path) -> list[Path]:
+    """Where ``--each`` writes each log's output: ``DIR/<log's stem>.out.jsonl``, or with
+    its directory's name in front where two logs share a stem (``mc-1/measurements.jsonl``)."""
+    stems = [Path(p).stem for p in inputs]
+    names = [
+        f"{Path(p).resolve().parent.name}-{st}" if stems.count(st) > 1 else st
+        for p, st in zip(inputs, stems, strict=True)
+    ]
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            other = inputs[names.index(n)]
+            raise ConfigError(
+                f"--each: {other} and {inputs[i]} would both write {n}.out.jsonl; "
+                "replay them apart"
+            )
+    return [Path(out_dir) / f"{n}.out.jsonl" for n in names]
+
+
+def replay_one(path: str, cfg: Config, out: Path, smooth: bool, strict: bool) -> str:
+    """One mission of ``--each``: what ``navd replay PATH`` would print, as text (a worker
+    process sends back this, not the outputs)."""
+    err = io.StringIO()
+    try:
+        replay(path, cfg, out, smooth=smooth, strict=strict, err=err)
+    except (ConfigError, LogError) as exc:
+        err.write(f"navd: {exc}\n")
+    return err.getvalue()
