@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import sys
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -15,7 +16,8 @@ from typing import IO, Any
 from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.formats import jsonlines
-from navd.formats.mlog import LogError, MeasurementLog, Skipped, read_measurement_log
+from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped
+from navd.records import Record
 
 MAX_REPORTED_SKIPS = 20
 
@@ -30,25 +32,49 @@ class ReplayResult:
     filtered: list[dict[str, Any]] = field(default_factory=list)
 
 
-def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
+@dataclass(slots=True)
+class ReplaySummary:
+    """What a streamed replay says when it is done (its outputs are in the file)."""
+
+    records: int
+    skipped: int
+    estimates: int
+    counters: dict[str, int]
+    warnings: list[str]
+
+
+def _check_smoothable(cfg: Config, smooth: bool) -> None:
     if smooth and cfg.navigation.filter == "vlbl":
         # VLBL's fixes replace the state rather than update it: there is nothing to smooth
         raise ConfigError("navigation.filter: --smooth needs a Kalman mode (default or thesis)")
+
+
+def navigate(nav: Navigator, records: Iterable[Record]) -> Iterator[dict[str, Any]]:
+    """The navigator's outputs over the records, as they come, up to the last record."""
+    last: Record | None = None
+    for rec in records:
+        last = rec
+        yield from nav.feed(rec)
+    if last is not None:
+        yield from nav.advance(last.t)
+
+
+def _smoothed(nav: Navigator, outputs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    smoothed = iter(nav.smoothed())
+    return [next(smoothed) if o["type"] == "estimate" else o for o in outputs]
+
+
+def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
+    _check_smoothable(cfg, smooth)
     nav = Navigator(cfg, keep_history=smooth)
-    outputs: list[dict[str, Any]] = []
-    for rec in log.records:
-        outputs.extend(nav.feed(rec))
-    if log.records:
-        outputs.extend(nav.advance(log.records[-1].t))
+    outputs = list(navigate(nav, log.records))
     filtered: list[dict[str, Any]] = []
     if smooth:
-        filtered = outputs
-        smoothed = iter(nav.smoothed())
-        outputs = [next(smoothed) if o["type"] == "estimate" else o for o in outputs]
+        filtered, outputs = outputs, _smoothed(nav, outputs)
     return ReplayResult(outputs, log.skipped, dict(nav.counters), nav.warnings, filtered)
 
 
-def write_outputs(outputs: list[dict[str, Any]], fh: IO[str]) -> None:
+def write_outputs(outputs: Iterable[dict[str, Any]], fh: IO[str]) -> None:
     fh.writelines(jsonlines.dumps_line(o) for o in outputs)
 
 
@@ -59,49 +85,87 @@ def _is_empty(path: str | Path) -> bool:
         return False  # the reader says why it cannot open it
 
 
+class _Logs:
+    """The records of one log, or of the consecutive files of a rotated daemon log, as
+    one stream; each file's skipped lines are said when the file is done."""
+
+    def __init__(self, paths: list[str | Path], strict: bool, err: IO[str]) -> None:
+        self.paths, self.strict, self.err = paths, strict, err
+        self.records = 0
+        self.skipped = 0
+        # every file is opened (its header checked) before anything is replayed
+        self.streams = [
+            MeasurementStream(p, strict) for p in paths if not self._passed_over(p, len(paths))
+        ]
+
+    def _passed_over(self, path: str | Path, n: int) -> bool:
+        if n > 1 and _is_empty(path):
+            # a daemon that hit a full disk can leave an empty file among its logs
+            print(f"{path}: empty file, passed over", file=self.err)
+            return True
+        return False
+
+    def __iter__(self) -> Iterator[Record]:
+        for stream in self.streams:
+            for rec in stream:
+                self.records += 1
+                yield rec
+            self.skipped += len(stream.skipped)
+            self._say_skipped(stream)
+
+    def _say_skipped(self, stream: MeasurementStream) -> None:
+        path, skipped = stream.path, stream.skipped
+        for s in skipped[:MAX_REPORTED_SKIPS]:
+            print(f"{path}: line {s.line}: skipped: {s.reason}", file=self.err)
+        if len(skipped) > MAX_REPORTED_SKIPS:
+            more = len(skipped) - MAX_REPORTED_SKIPS
+            print(f"{path}: ... {more} more lines skipped", file=self.err)
+
+
 def replay(
     input_path: str | Path | list[str | Path],
     cfg: Config,
     out_path: str | Path,
     smooth: bool = False,
     strict: bool = False,
-    err: IO[str] = sys.stderr,
-) -> ReplayResult:
-    """Replay one log, or the consecutive files of a rotated daemon log, as one mission."""
+    err: IO[str] | None = None,
+) -> ReplaySummary:
+    """Replay one log, or the consecutive files of a rotated daemon log, as one mission.
+
+    Records are read, filtered and written as they come: without ``smooth`` the memory
+    does not grow with the mission.  The smoother needs every step before it can write
+    the first, so with it the outputs are held until the end.
+    """
+    _check_smoothable(cfg, smooth)
+    err = err or sys.stderr  # looked up now: a test or a caller may have replaced it
     paths = input_path if isinstance(input_path, list) else [input_path]
-    log = MeasurementLog({}, [], [])
-    for path in paths:
-        if len(paths) > 1 and _is_empty(path):
-            # a daemon that hit a full disk can leave an empty file among its logs
-            print(f"{path}: empty file, passed over", file=err)
-            continue
-        part = read_measurement_log(path, strict=strict)
-        log.header = log.header or part.header
-        log.records.extend(part.records)
-        log.skipped.extend(part.skipped)
-        for s in part.skipped[:MAX_REPORTED_SKIPS]:
-            print(f"{path}: line {s.line}: skipped: {s.reason}", file=err)
-        if len(part.skipped) > MAX_REPORTED_SKIPS:
-            print(
-                f"{path}: ... {len(part.skipped) - MAX_REPORTED_SKIPS} more lines skipped", file=err
-            )
-    result = run_navigator(log, cfg, smooth)
-    for w in result.warnings:
-        print(f"warning: {w}", file=err)
+    logs = _Logs(paths, strict, err)
+    nav = Navigator(cfg, keep_history=smooth)
     out = Path(out_path)
     tmp = out.with_name(out.name + ".part")
-    with tmp.open("w", encoding="utf-8") as fh:
-        write_outputs(result.outputs, fh)
+    estimates = 0
+    try:
+        with tmp.open("w", encoding="utf-8") as fh:
+            outputs: Iterable[dict[str, Any]] = navigate(nav, logs)
+            if smooth:
+                outputs = _smoothed(nav, list(outputs))
+            for o in outputs:
+                estimates += o["type"] == "estimate"
+                fh.write(jsonlines.dumps_line(o))
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # a strict replay stopped by a bad line leaves nothing
+        raise
     tmp.replace(out)
-    c = result.counters
-    n_est = sum(1 for o in result.outputs if o["type"] == "estimate")
+    for w in nav.warnings:
+        print(f"warning: {w}", file=err)
+    c = nav.counters
     print(
-        f"replayed {len(log.records)} records ({len(log.skipped)} lines skipped): "
-        f"{n_est} estimates, ranges accepted {c.get('ranges_accepted', 0)}, "
+        f"replayed {logs.records} records ({logs.skipped} lines skipped): "
+        f"{estimates} estimates, ranges accepted {c.get('ranges_accepted', 0)}, "
         f"rejected {c.get('ranges_rejected', 0)} -> {out}",
         file=err,
     )
-    return result
+    return ReplaySummary(logs.records, logs.skipped, estimates, dict(c), list(nav.warnings))
 
 
 def outputs_for_each(inputs: list[str], out_dir: str | Path) -> list[Path]:

@@ -394,34 +394,58 @@ def _bounded_lines(fh: IO[bytes]) -> Iterator[bytes]:
         yield line
 
 
-def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementLog:
-    p = Path(path)
-    try:
-        fh = files.open_regular(p)
-    except files.FileRefused as exc:
-        raise LogError(str(exc)) from None
-    try:
-        with fh:
-            first = fh.readline(MAX_LINE_CHARS)
+class MeasurementStream:
+    """A measurement log read as it is iterated: its header at once (a file that is no
+    log is refused before anything is replayed), then its records one at a time, so a
+    day's log costs the memory of a window of lines, not of the day.  The lines skipped
+    are in ``skipped`` as iteration passes them."""
+
+    def __init__(self, path: str | Path, strict: bool = False) -> None:
+        self.path = Path(path)
+        self.strict = strict
+        self.skipped: list[Skipped] = []
+        try:
+            self._fh = files.open_regular(self.path)
+        except files.FileRefused as exc:
+            raise LogError(str(exc)) from None
+        try:
+            first = self._fh.readline(MAX_LINE_CHARS)
             if not first:
-                raise LogError(f"{p}: empty file, expected a measurement log header")
+                raise LogError(f"{self.path}: empty file, expected a measurement log header")
             try:
-                header = _check_header(jsonlines.loads(first))
+                self.header = _check_header(jsonlines.loads(first))
             except jsonlines.DecodeError:
-                raise LogError(f"{p}: line 1: header is not valid JSON") from None
-            records: list[Record] = []
-            skipped: list[Skipped] = []
-            for _, item in iter_lines(_bounded_lines(fh), strict):
-                if isinstance(item, Skipped):
-                    skipped.append(item)
-                else:
-                    records.append(item)
-    except OSError as exc:
-        raise LogError(f"{p}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
-    except LogError as exc:
-        msg = str(exc)
-        raise LogError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
-    return MeasurementLog(header, records, skipped)
+                raise LogError(f"{self.path}: line 1: header is not valid JSON") from None
+        except BaseException as exc:
+            self._fh.close()
+            raise self._named(exc) from None
+
+    def __iter__(self) -> Iterator[Record]:
+        try:
+            with self._fh:
+                for _, item in iter_lines(_bounded_lines(self._fh), self.strict):
+                    if isinstance(item, Skipped):
+                        self.skipped.append(item)
+                    else:
+                        yield item
+        except (OSError, LogError) as exc:
+            raise self._named(exc) from None
+
+    def _named(self, exc: BaseException) -> BaseException:
+        p = self.path
+        if isinstance(exc, OSError):
+            return LogError(f"{p}: cannot read ({exc.strerror or exc.__class__.__name__})")
+        if isinstance(exc, LogError):
+            msg = str(exc)
+            return LogError(msg if msg.startswith(str(p)) else f"{p}: {msg}")
+        return exc
+
+
+def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementLog:
+    """The whole log in memory (the tools that look at it more than once)."""
+    stream = MeasurementStream(path, strict)
+    records = list(stream)
+    return MeasurementLog(stream.header, records, stream.skipped)
 
 
 def record_to_json(rec: Record) -> dict[str, Any]:
