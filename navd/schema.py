@@ -13,6 +13,7 @@ ranges too: there a range decision is written as ``decision`` (:data:`LOG_TYPE`)
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from operator import attrgetter
 from typing import Any, TypeVar
 
 #: the version in every zenoh message (``schema``); it changes when a field changes meaning
@@ -163,11 +164,35 @@ def _plan(cls: type) -> tuple[tuple[str, bool], ...]:
 _PLANS = {cls: _plan(cls) for cls in (Estimate, RangeDecision, Advisory, DeviceHealth, Health)}
 
 
+class _FlatPlan:
+    """How a record of flat fields is serialised: every value in one ``attrgetter`` call,
+    then the optional ones that are None taken out (the filter writes one a tick)."""
+
+    def __init__(self, cls: type) -> None:
+        plan = [(n, o) for n, o in _PLANS[cls] if n != "type"]
+        self.names = tuple(n for n, _ in plan)
+        self.get = attrgetter(*self.names)
+        self.optional = tuple(n for n, o in plan if o)
+
+    def __call__(self, obj: Estimate | RangeDecision | Advisory) -> dict[str, Any]:
+        out: dict[str, Any] = {"type": obj.type}
+        out.update(zip(self.names, self.get(obj), strict=True))
+        for name in self.optional:
+            if out[name] is None:
+                del out[name]
+        return out
+
+
+_FLAT = {cls: _FlatPlan(cls) for cls in (Estimate, RangeDecision, Advisory)}
+
+
 def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) -> dict[str, Any]:
     """The serialised form: ``type`` first, optional fields left out while None.
 
     A device's ``info`` is spread into its entry (``firmware``, ``serial_number``...).
     """
+    if isinstance(obj, Estimate | RangeDecision | Advisory):
+        return _FLAT[type(obj)](obj)
     out: dict[str, Any] = {}
     if not isinstance(obj, DeviceHealth):
         out["type"] = obj.type

@@ -49,12 +49,18 @@ def _check_smoothable(cfg: Config, smooth: bool) -> None:
         raise ConfigError("navigation.filter: --smooth needs a Kalman mode (default or thesis)")
 
 
-def navigate(nav: Navigator, records: Iterable[Record]) -> Iterator[dict[str, Any]]:
-    """The navigator's outputs over the records, as they come, up to the last record."""
+def navigate(
+    nav: Navigator, records: Iterable[Record], checked: bool = False
+) -> Iterator[dict[str, Any]]:
+    """The navigator's outputs over the records, as they come, up to the last record.
+
+    ``checked``: every record has passed :func:`navd.records.implausible` (a log
+    reader's records have)."""
     last: Record | None = None
+    feed = nav.feed
     for rec in records:
         last = rec
-        yield from nav.feed(rec)
+        yield from feed(rec, checked)
     if last is not None:
         yield from nav.advance(last.t)
 
@@ -146,7 +152,7 @@ def replay(
     estimates = 0
     try:
         with tmp.open("w", encoding="utf-8") as fh:
-            outputs: Iterable[dict[str, Any]] = navigate(nav, logs)
+            outputs: Iterable[dict[str, Any]] = navigate(nav, logs, checked=True)
             if smooth:
                 outputs = _smoothed(nav, list(outputs))
             for o in outputs:

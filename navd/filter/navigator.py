@@ -134,8 +134,12 @@ class Navigator:
         self._tick_steps: list[tuple[int, Estimate]] = []
 
     # -- public ------------------------------------------------------------------------
-    def feed(self, rec: Record) -> list[dict[str, Any]]:
-        """Consume one record; return the outputs (ticks before it, its decision)."""
+    def feed(self, rec: Record, checked: bool = False) -> list[dict[str, Any]]:
+        """Consume one record; return the outputs (ticks before it, its decision).
+
+        ``checked``: the caller has put ``rec`` through :func:`implausible` already
+        (the log reader has), so it is not tested twice.
+        """
         if isinstance(rec, Tick):
             if self._tick_k is None:
                 # the first tick since a start: the daemon counted from this one (its
@@ -150,8 +154,7 @@ class Navigator:
             else:
                 self.counters["skipped_implausible"] += 1
             return []
-        why = implausible(rec)
-        if why is not None:
+        if not checked and implausible(rec) is not None:
             # the decoders and the log reader refuse these already; records made by
             # other callers get the same test, so no value can blow up a step
             self.counters["skipped_implausible"] += 1
@@ -563,7 +566,7 @@ class Navigator:
             self.counters["ticks_with_stale_input"] += 1
         out = to_dict(r)
         # one sum is NaN or infinite exactly when one of its terms is (all are bounded)
-        if not math.isfinite(sum(v for v in out.values() if type(v) is float)):
+        if not math.isfinite(sum([v for v in out.values() if type(v) is float])):
             # Never publish a NaN: say so and skip the tick.
             self.counters["estimates_not_finite"] += 1
             return None
