@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-soak bench-calibration bench-advisory bench-files clean
+	bench-robustness bench-soak bench-calibration bench-advisory bench-files check-armhf check-arm64 clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -70,6 +70,14 @@ bench-advisory: $(STAMP)
 # an hour of the daemon under faults; needs unshare and mount (root) for the full-disk fault
 bench-soak: $(STAMP)
 	$(BIN)/python -m bench.soak --minutes 60 --write BENCHMARKS.md
+
+# navd installed and run on the vehicle's 32-bit ARM computer, under qemu-user (root;
+# about 15 minutes the first time, with debootstrap); check-arm64 for 64-bit ARM boards
+check-armhf: $(STAMP)
+	NAVD_ARCH=armhf .ci/check-armhf
+
+check-arm64: $(STAMP)
+	NAVD_ARCH=arm64 .ci/check-armhf
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

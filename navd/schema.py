@@ -168,7 +168,7 @@ class _FlatPlan:
     """How a record of flat fields is serialised: every value in one ``attrgetter`` call,
     then the optional ones that are None taken out (the filter writes one a tick)."""
 
-    def __init__(self, cls: type) -> None:
+    def __init__(self, cls: type[Estimate] | type[RangeDecision] | type[Advisory]) -> None:
         plan = [(n, o) for n, o in _PLANS[cls] if n != "type"]
         self.names = tuple(n for n, _ in plan)
         self.get = attrgetter(*self.names)

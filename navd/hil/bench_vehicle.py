@@ -82,8 +82,11 @@ class BenchVehicle:
         vehicle: str = "sim690s",
         connect: list[str] | None = None,
         state_dir: Path | None = None,
+        profile: Path | None = None,
     ) -> None:
-        """``state_dir``: keep the daemon's checkpoint there (systemd's StateDirectory)."""
+        """``state_dir``: keep the daemon's checkpoint there (systemd's StateDirectory);
+        ``profile``: run the daemon under cProfile, its statistics written there at stop."""
+        self.profile = profile
         self.dir = d
         self.config = d / "navd.yaml"
         self.navd_stderr = navd_stderr
@@ -116,9 +119,11 @@ class BenchVehicle:
             raise
 
     def _start_navd(self) -> subprocess.Popen:
+        navd = [str(BIN / "navd")]
+        if self.profile is not None:
+            navd = [sys.executable, "-m", "cProfile", "-o", str(self.profile), "-m", "navd.cli"]
         return subprocess.Popen(
-            [str(BIN / "navd"), "run", "--config", str(self.config), *self.site],
-            stderr=self.navd_stderr,
+            [*navd, "run", "--config", str(self.config), *self.site], stderr=self.navd_stderr
         )
 
     def restart_navd(self) -> None:
