@@ -238,5 +238,8 @@ def from_dict(cls: type[T], d: dict[str, Any]) -> T:
     Fields this version does not know (added by a newer navd, or zenoh's ``schema``
     and ``seq``) are left out, so a reader keeps working as fields are added.
     """
-    known = {name for name, _ in _PLANS[cls]}
+    known = _KNOWN[cls]
     return cls(**{k: v for k, v in d.items() if k in known})
+
+
+_KNOWN = {cls: frozenset(name for name, _ in _PLANS[cls]) for cls in _PLANS}

@@ -65,9 +65,28 @@ def navigate(
         yield from nav.advance(last.t)
 
 
-def _smoothed(nav: Navigator, outputs: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    smoothed = iter(nav.smoothed())
-    return [next(smoothed) if o["type"] == "estimate" else o for o in outputs]
+def _smoothed(nav: Navigator, outputs: Iterable[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+    """The forward pass's outputs with each estimate replaced by its smoothed one.
+
+    The forward pass runs to its end first; of its outputs only what is not an
+    estimate is held (a few per ping), with the number of estimates before it."""
+    others: list[tuple[int, dict[str, Any]]] = []
+    n = 0
+    for o in outputs:
+        if o["type"] == "estimate":
+            n += 1
+        else:
+            others.append((n, o))
+    pending = iter(others)
+    nxt = next(pending, None)
+    for i, est in enumerate(nav.smoothed()):
+        while nxt is not None and nxt[0] == i:
+            yield nxt[1]
+            nxt = next(pending, None)
+        yield est
+    while nxt is not None:
+        yield nxt[1]
+        nxt = next(pending, None)
 
 
 def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
@@ -76,7 +95,7 @@ def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> Rep
     outputs = list(navigate(nav, log.records))
     filtered: list[dict[str, Any]] = []
     if smooth:
-        filtered, outputs = outputs, _smoothed(nav, outputs)
+        filtered, outputs = outputs, list(_smoothed(nav, outputs))
     return ReplayResult(outputs, log.skipped, dict(nav.counters), nav.warnings, filtered)
 
 
@@ -154,7 +173,7 @@ def replay(
         with tmp.open("w", encoding="utf-8") as fh:
             outputs: Iterable[dict[str, Any]] = navigate(nav, logs, checked=True)
             if smooth:
-                outputs = _smoothed(nav, list(outputs))
+                outputs = _smoothed(nav, outputs)
             for o in outputs:
                 estimates += o["type"] == "estimate"
                 fh.write(jsonlines.dumps_line(o))

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+import tempfile
+from dataclasses import dataclass
+from typing import IO, TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -60,14 +61,45 @@ class Step:
     P_filt: np.ndarray
 
 
-@dataclass(slots=True)
 class History:
-    steps: list[Step] = field(default_factory=list)
-    enabled: bool = False
+    """The steps the RTS smoother runs over, as a sequence in time order.
+
+    All but the latest step live in an anonymous temporary file, as raw float64
+    records: a day at 10 Hz is 864,000 steps of three covariances, more than an
+    ODROID's memory, and the backward pass reads them back a block at a time.  The
+    latest stays in memory, since an update or a widened covariance still changes it.
+    Reading back gives the very numbers written, so smoothing is unchanged.
+    """
+
+    BLOCK = 1024  # steps read back at a time
+
+    def __init__(self) -> None:
+        self.enabled = False
+        self._file: IO[bytes] | None = None
+        self._on_disk = 0
+        self._latest: Step | None = None
+        self._n = 0  # state dimension, from the first step
+        self._block: tuple[int, np.ndarray] | None = None
+
+    def __len__(self) -> int:
+        return self._on_disk + (self._latest is not None)
+
+    def __getitem__(self, k: int) -> Step:
+        if not 0 <= k < len(self):
+            raise IndexError(k)
+        if k == self._on_disk:
+            assert self._latest is not None
+            return self._latest
+        start = k - k % self.BLOCK
+        if self._block is None or self._block[0] != start:
+            self._block = (start, self._read(start, min(self.BLOCK, self._on_disk - start)))
+        return self._unpack(self._block[1][k - start])
 
     def add(self, t: float, F: np.ndarray, x: object, P: np.ndarray) -> None:
         if self.enabled:
-            self.steps.append(Step(t, F, x, P, x, P))
+            if self._latest is not None:
+                self._spill(self._latest)
+            self._latest = Step(t, F, x, P, x, P)
 
     def widen(self, P: np.ndarray) -> None:
         """Record covariance added outside a measurement (re-acquisition, a new prior).
@@ -75,16 +107,70 @@ class History:
         To the smoother it is process noise of the latest step, so it goes into the
         predicted covariance as well as the filtered one.
         """
-        if self.enabled and self.steps:
-            s = self.steps[-1]
+        s = self._latest
+        if self.enabled and s is not None:
             s.P_pred = s.P_pred + (P - s.P_filt)
             s.P_filt = P
 
     def correct(self, x: object, P: np.ndarray) -> None:
         """Replace the filtered state of the latest step after an update."""
-        if self.enabled and self.steps:
-            s = self.steps[-1]
+        s = self._latest
+        if self.enabled and s is not None:
             s.x_filt, s.P_filt = x, P
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+        self._file, self._on_disk, self._latest, self._block = None, 0, None, None
+
+    # -- the file ----------------------------------------------------------------------
+    def _spill(self, s: Step) -> None:
+        x_pred = np.asarray(s.x_pred, dtype=float)
+        if self._file is None:
+            self._n = x_pred.size
+            self._file = tempfile.TemporaryFile()  # noqa: SIM115 - lives as long as the history, closed by close()
+        if self._block is not None:  # read since the last write: back to the end
+            self._file.seek(0, 2)
+        self._file.write(
+            np.concatenate(
+                (
+                    [s.t],
+                    np.asarray(s.F, dtype=float).ravel(),
+                    x_pred,
+                    np.asarray(s.P_pred, dtype=float).ravel(),
+                    np.asarray(s.x_filt, dtype=float),
+                    np.asarray(s.P_filt, dtype=float).ravel(),
+                )
+            ).tobytes()
+        )
+        self._on_disk += 1
+        self._block = None
+
+    def _width(self) -> int:
+        n = self._n
+        return 1 + 3 * n * n + 2 * n
+
+    def _read(self, start: int, count: int) -> np.ndarray:
+        assert self._file is not None
+        w = self._width()
+        self._file.seek(start * w * 8)
+        data = self._file.read(count * w * 8)
+        return np.frombuffer(data, dtype=np.float64).reshape(count, w)
+
+    def _unpack(self, row: np.ndarray) -> Step:
+        n = self._n
+        nn = n * n
+        i = 1
+        F = row[i : i + nn].reshape(n, n)
+        i += nn
+        x_pred = row[i : i + n]
+        i += n
+        P_pred = row[i : i + nn].reshape(n, n)
+        i += nn
+        x_filt = row[i : i + n]
+        i += n
+        P_filt = row[i : i + nn].reshape(n, n)
+        return Step(float(row[0]), F, x_pred, P_pred, x_filt, P_filt)
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -26,16 +27,16 @@ from navd.filter.common import (
     GateDecision,
     NavFilter,
     RangeMeas,
-    StateEstimate,
     principal_axes,
 )
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
+from navd.filter.estimate import fill
 from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
 from navd.filter.integrity import Integrity
-from navd.filter.smoother import rts_smooth
+from navd.filter.smoothing import Smoothing
 from navd.filter.thesis import ThesisEKF
 from navd.filter.vlbl import NetRange, VirtualNet
 from navd.filter.vlblmode import VlblMode
@@ -86,16 +87,18 @@ class Navigator:
         self.cfg = cfg
         self.nav = cfg.navigation
         self.counters: Counter[str] = Counter()
-        self._smoothed_done: list[dict[str, Any]] = []
-        self._fresh(keep_history)
+        # the RTS smoother's record of the run, kept only when asked for
+        self.smoothing: Smoothing | None = Smoothing() if keep_history else None
+        self._fresh()
 
-    def _fresh(self, keep_history: bool) -> None:
+    def _fresh(self) -> None:
         """Everything a new process knows before its first record (counters and the
         smoother's finished segments are the run's, and stay)."""
         cfg = self.cfg
         nav = self.nav
         self.filter: NavFilter = make_filter(cfg)
-        self.filter.history.enabled = keep_history
+        if self.smoothing is not None:
+            self.smoothing.start(self.filter)
         self.dr = DeadReckoner()
         d = nav.dvl
         self.dvl = DvlDeadReckoner(
@@ -131,7 +134,6 @@ class Navigator:
         self.depth = DepthGauge(cfg.site)
         self.gps = GpsFixes(nav, cfg.site)
         self.gps_gate = GpsGate(nav.gate.gps_chi2, nav.gate.gps_agree)
-        self._tick_steps: list[tuple[int, Estimate]] = []
 
     # -- public ------------------------------------------------------------------------
     def feed(self, rec: Record, checked: bool = False) -> list[dict[str, Any]]:
@@ -186,12 +188,9 @@ class Navigator:
     def restart(self, reason: str) -> None:
         """Forget the estimate and start again at the next GPS fix."""
         self.counters[f"restarts_{reason}"] += 1
-        enabled = self.filter.history.enabled
-        if enabled:
-            self._smoothed_done.extend(self._smooth_segment())
-            self._tick_steps = []
         self.filter = make_filter(self.cfg)
-        self.filter.history.enabled = enabled
+        if self.smoothing is not None:
+            self.smoothing.start(self.filter)
         self.integrity.clear()
         self.observability.clear()
         self.dr = DeadReckoner()
@@ -245,10 +244,7 @@ class Navigator:
         n = len(rec.x)
         # a new process: what the one before knew is gone (a replay of its log goes on
         # from here as the daemon did)
-        keep = self.filter.history.enabled
-        if keep:
-            self._smoothed_done.extend(self._smooth_segment())
-        self._fresh(keep)
+        self._fresh()
         if rec.mode != self.cfg.navigation.filter or n != len(np.asarray(self.filter.x)):
             self.counters["resume_refused_mode"] += 1
             return
@@ -285,22 +281,11 @@ class Navigator:
             self.restart("after_gap")
         return self._ticks_until(t, inclusive=True)
 
-    def smoothed(self) -> list[dict[str, Any]]:
-        """Estimates re-written by the Rauch-Tung-Striebel smoother over the whole history."""
-        return self._smoothed_done + self._smooth_segment()
-
-    def _smooth_segment(self) -> list[dict[str, Any]]:
-        steps = self.filter.history.steps
-        if not steps:
-            return []
-        xs, Ps = rts_smooth(steps, self.filter.state_diff, self.filter.state_apply)
-        out = []
-        for idx, rec in self._tick_steps:
-            est = self.filter.estimate_of(xs[idx], Ps[idx])
-            r = replace(rec, smoothed=True)
-            _fill(r, est)
-            out.append(to_dict(r))
-        return out
+    def smoothed(self) -> Iterator[dict[str, Any]]:
+        """Estimates re-written by the Rauch-Tung-Striebel smoother over the whole run,
+        one at a time (nothing, unless made with ``keep_history``)."""
+        if self.smoothing is not None:
+            yield from self.smoothing.smoothed()
 
     @property
     def surface_altitude(self) -> float:
@@ -529,7 +514,7 @@ class Navigator:
         r = Estimate(
             round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.depth.m, self.mode(t), integrity
         )
-        _fill(r, est)
+        fill(r, est)
         if self.integrity.reason:
             r.integrity_reason = self.integrity.reason
         c = self.filter.corrections()
@@ -570,20 +555,9 @@ class Navigator:
             # Never publish a NaN: say so and skip the tick.
             self.counters["estimates_not_finite"] += 1
             return None
-        if self.filter.history.enabled:
-            self._tick_steps.append((len(self.filter.history.steps) - 1, r))
+        if self.smoothing is not None:
+            self.smoothing.tick(r)
         return out
-
-
-def _fill(r: Estimate, est: StateEstimate) -> None:
-    """The position, current and uncertainty of a filter state, in output units."""
-    r.lat = math.degrees(est.lat)
-    r.lon = math.degrees(est.lon)
-    r.current_n = est.current_n
-    r.current_e = est.current_e
-    r.std_n = math.sqrt(max(0.0, est.var_n))
-    r.std_e = math.sqrt(max(0.0, est.var_e))
-    r.cov_ne = est.cov_ne
 
 
 _HANDLERS: dict[type, Any] = {

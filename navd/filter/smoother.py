@@ -14,27 +14,41 @@ State differences and corrections go through the filter's own ``diff`` and
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator
+from typing import Protocol
 
 import numpy as np
 
 from navd.filter.common import Step
 
 
-def rts_smooth(
-    steps: Sequence[Step],
+class Steps(Protocol):
+    """A filter's steps in time order (a list, or :class:`navd.filter.common.History`)."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, k: int) -> Step: ...
+
+
+def rts_backward(
+    steps: Steps,
     diff: Callable[[object, object], np.ndarray],
     apply: Callable[[object, np.ndarray], object],
-) -> tuple[list[object], list[np.ndarray]]:
+) -> Iterator[tuple[int, object, np.ndarray]]:
+    """The smoothed state and covariance of every step, ``(k, x, P)``, from the last
+    step back to the first: each needs only the one after it, so nothing is held."""
     n = len(steps)
-    xs: list[object] = [None] * n
-    Ps: list[np.ndarray] = [np.empty(0)] * n
-    xs[-1], Ps[-1] = steps[-1].x_filt, steps[-1].P_filt
+    if n == 0:
+        return
+    nxt = steps[n - 1]
+    x_s, P_s = nxt.x_filt, nxt.P_filt
+    yield n - 1, x_s, P_s
     for k in range(n - 2, -1, -1):
-        cur, nxt = steps[k], steps[k + 1]
+        cur = steps[k]
         # C = Pf F^T Pp^-1, computed as the solution of Pp C^T = F Pf (Pp symmetric).
         C = np.linalg.solve(nxt.P_pred, nxt.F @ cur.P_filt).T
-        xs[k] = apply(cur.x_filt, C @ diff(xs[k + 1], nxt.x_pred))
-        P = cur.P_filt + C @ (Ps[k + 1] - nxt.P_pred) @ C.T
-        Ps[k] = 0.5 * (P + P.T)
-    return xs, Ps
+        x_s = apply(cur.x_filt, C @ diff(x_s, nxt.x_pred))
+        P = cur.P_filt + C @ (P_s - nxt.P_pred) @ C.T
+        P_s = 0.5 * (P + P.T)
+        yield k, x_s, P_s
+        nxt = cur

@@ -1,0 +1,83 @@
+"""What the navigator keeps for the RTS smoother, when asked (``navd replay --smooth``).
+
+Each filter the navigator runs, between restarts, is one segment: its step history
+(:class:`navd.filter.common.History`, on disk) and the estimates of its ticks with the
+step each was made at.  The estimates go to a temporary file as their serialised
+lines, and come back when smoothed: a day's replay keeps a few bytes a tick.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from array import array
+from collections.abc import Iterator
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from navd.filter.common import NavFilter, StateEstimate
+from navd.filter.estimate import fill
+from navd.filter.smoother import rts_backward
+from navd.formats import jsonlines
+from navd.schema import Estimate, from_dict, to_dict
+
+_FIELDS = len(StateEstimate.__slots__)
+
+
+class _Segment:
+    def __init__(self, flt: NavFilter) -> None:
+        self.filter = flt
+        flt.history.enabled = True
+        self.steps = array("q")  # the step each tick's estimate was made at
+        self.lines = tempfile.TemporaryFile()  # noqa: SIM115 - lives as long as the history, closed by close()
+
+    def tick(self, est: Estimate) -> None:
+        self.steps.append(len(self.filter.history) - 1)
+        self.lines.write(jsonlines.dumps_line(to_dict(est)).encode())
+
+    def smoothed(self) -> Iterator[dict[str, Any]]:
+        f = self.filter
+        n = len(self.steps)
+        values = np.empty((n, _FIELDS))
+        j = n - 1
+        for k, x, P in rts_backward(f.history, f.state_diff, f.state_apply):
+            while j >= 0 and self.steps[j] == k:
+                e = f.estimate_of(x, P)
+                values[j] = (e.lat, e.lon, e.current_n, e.current_e, e.var_n, e.var_e, e.cov_ne)
+                j -= 1
+            if j < 0:
+                break  # no tick before this step: the rest of the pass changes nothing
+        self.lines.seek(0)
+        for line, row in zip(self.lines, values, strict=True):
+            rec = replace(from_dict(Estimate, jsonlines.loads(line)), smoothed=True)
+            fill(rec, StateEstimate(*row.tolist()))
+            yield to_dict(rec)
+
+    def close(self) -> None:
+        self.lines.close()
+        self.filter.history.close()
+
+
+class Smoothing:
+    """The segments of one run, smoothed in order at the end."""
+
+    def __init__(self) -> None:
+        self._segments: list[_Segment] = []
+
+    def start(self, flt: NavFilter) -> None:
+        """A new filter (the first, or one after a restart): a segment of its own."""
+        self._segments.append(_Segment(flt))
+
+    def tick(self, est: Estimate) -> None:
+        self._segments[-1].tick(est)
+
+    def smoothed(self) -> Iterator[dict[str, Any]]:
+        """Every tick's estimate re-written by the Rauch-Tung-Striebel smoother."""
+        for seg in self._segments:
+            yield from seg.smoothed()
+
+    def close(self) -> None:
+        for seg in self._segments:
+            seg.close()
+        self._segments = []
