@@ -107,6 +107,10 @@ def speed(d: Path, runs: int) -> list[str]:
     ]
 
 
+def _span(seconds: float) -> str:
+    return f"{seconds / 60:g} min" if seconds < 3600 else f"{seconds / 3600:g} h"
+
+
 def memory(tmp: Path, lengths: list[float]) -> list[str]:
     rows = []
     for length in lengths:
@@ -116,7 +120,7 @@ def memory(tmp: Path, lengths: list[float]) -> list[str]:
         plain = _run(_replay_cmd(d, "default", False))
         smooth = _run(_replay_cmd(d, "default", True))
         rows.append(
-            f"| {length / 3600:g} h | {size:.0f} | {plain[1]:.0f} | {plain[0]:.1f} | "
+            f"| {_span(length)} | {size:.0f} | {plain[1]:.0f} | {plain[0]:.1f} | "
             f"{smooth[1]:.0f} | {smooth[0]:.1f} |"
         )
         for p in d.iterdir():
