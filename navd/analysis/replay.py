@@ -157,9 +157,10 @@ def replay(
 ) -> ReplaySummary:
     """Replay one log, or the consecutive files of a rotated daemon log, as one mission.
 
-    Records are read, filtered and written as they come: without ``smooth`` the memory
-    does not grow with the mission.  The smoother needs every step before it can write
-    the first, so with it the outputs are held until the end.
+    Records are read, filtered and written as they come, so memory does not grow with
+    the mission.  The smoother needs every step before it can write the first: with it
+    the steps and estimates wait on disk (navd/filter/smoothing.py), and only the range
+    decisions in memory.
     """
     _check_smoothable(cfg, smooth)
     err = err or sys.stderr  # looked up now: a test or a caller may have replaced it
@@ -180,6 +181,9 @@ def replay(
     except BaseException:
         tmp.unlink(missing_ok=True)  # a strict replay stopped by a bad line leaves nothing
         raise
+    finally:
+        if nav.smoothing is not None:
+            nav.smoothing.close()  # its temporary files, now rather than at collection
     tmp.replace(out)
     for w in nav.warnings:
         print(f"warning: {w}", file=err)
