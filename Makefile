@@ -55,7 +55,7 @@ bench-decode: $(STAMP)
 bench-daemon: $(STAMP)
 	$(BIN)/python -m bench.daemon_perf --seconds 600 --write BENCHMARKS.md
 
-# 120 missions with drawn sensor errors and conditions (about 30 minutes on 2 cores)
+# 120 missions with drawn sensor errors and conditions (about 7 minutes on 2 cores; --jobs N)
 bench-robustness: $(STAMP)
 	$(BIN)/python -m bench.robustness --missions 120 --write BENCHMARKS.md
 

@@ -28,6 +28,7 @@ import shutil
 import statistics
 import sys
 import tempfile
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -410,10 +411,12 @@ def main() -> int:
     if args.only:
         seeds = [s for s in seeds if draw(s).cls == args.only]
     # each mission's files are written and read by the one worker that runs it
+    t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
         results = run_all(
             run_one, seeds, [tmp] * len(seeds), jobs=args.jobs, scheduler=args.scheduler
         )
+    took = time.perf_counter() - t0
     if args.missions_out:
         with open(args.missions_out, "w", encoding="utf-8") as fh:
             for r in results:
@@ -423,8 +426,16 @@ def main() -> int:
                     row[name] = asdict(sc) if sc is not None else None
                 fh.write(json.dumps(row) + "\n")
     cmd = f"`python -m bench.robustness --missions {args.missions}`"
+    where = f"Dask at {args.scheduler}" if args.scheduler else f"{args.jobs} worker processes"
+    pace = (
+        f"Ran in {took / 60:.1f} min on {where} ({took / len(seeds):.2f} s a mission; "
+        f"1,000 missions of this mix at this pace: {1000 * took / len(seeds) / 60:.0f} min)."
+    )
     report(
-        f"{cmd}\n\n{table(results, args.missions)}", args.write, "bench-robustness", "Robustness"
+        f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
+        args.write,
+        "bench-robustness",
+        "Robustness",
     )
     return 0
 
