@@ -233,6 +233,21 @@ def bound_table(results: dict[str, dict[str, list[Any]]]) -> list[str]:
             f"| {_m([x.inside95 for x in d]):.2f} | {_m([x.ok_inside99 for x in d]):.3f} "
             f"| {_m([x.ok_fraction for x in d]):.2f} |"
         )
+    below = [
+        name for name, r in results.items()
+        if r["bound"] and _rms([x.rms_m for x in r["default"]]) < _rms(r["bound"])
+    ]
+    if below:
+        lines += [
+            "",
+            f"Where */ bound* is below 1 ({', '.join(below)}) the bound is not tight for that "
+            "scenario: a scenario's calibration errors are fixed and only the noise is redrawn "
+            "per seed, while the bound is a mean over priors as large as those errors (an "
+            "estimator that knows their size, not their value), and for a tidal stream it "
+            "models the current's change as a random walk as fast as the truth's. It is a bound "
+            "on the Monte Carlo's mean, where the errors are drawn (bench-robustness), more "
+            "than on one fixed mission.",
+        ]
     return lines
 
 
