@@ -162,6 +162,7 @@ def _plan(cls: type) -> tuple[tuple[str, bool], ...]:
 
 
 _PLANS = {cls: _plan(cls) for cls in (Estimate, RangeDecision, Advisory, DeviceHealth, Health)}
+_KNOWN = {cls: frozenset(name for name, _ in plan) for cls, plan in _PLANS.items()}
 
 
 class _FlatPlan:
@@ -241,5 +242,3 @@ def from_dict(cls: type[T], d: dict[str, Any]) -> T:
     known = _KNOWN[cls]
     return cls(**{k: v for k, v in d.items() if k in known})
 
-
-_KNOWN = {cls: frozenset(name for name, _ in _PLANS[cls]) for cls in _PLANS}

@@ -100,7 +100,7 @@ def test_short_steps_follow_the_geodesic() -> None:
                     dn, de = d * math.cos(math.radians(az)), d * math.sin(math.radians(az))
                     lat2, lon2 = _offset(lat, lon, dn, de)
                     miss = g.Inverse(lat2, lon2, *_direct(g, lat, lon, az, d))["s12"]
-                    assert miss < 1e-6, (lat, lon, az, d, miss)
+                    assert miss < (1e-7 if d <= 10.0 else 1e-6), (lat, lon, az, d, miss)
                     assert -180.0 <= lon2 < 180.0
 
 

@@ -115,7 +115,7 @@ class _Logs:
     one stream; each file's skipped lines are said when the file is done."""
 
     def __init__(self, paths: list[str | Path], strict: bool, err: IO[str]) -> None:
-        self.paths, self.strict, self.err = paths, strict, err
+        self.err = err
         self.records = 0
         self.skipped = 0
         # every file is opened (its header checked) before anything is replayed
@@ -215,12 +215,15 @@ def outputs_for_each(inputs: list[str], out_dir: str | Path) -> list[Path]:
     return [Path(out_dir) / f"{n}.out.jsonl" for n in names]
 
 
-def replay_one(path: str, cfg: Config, out: Path, smooth: bool, strict: bool) -> str:
-    """One mission of ``--each``: what ``navd replay PATH`` would print, as text (a worker
-    process sends back this, not the outputs)."""
+def replay_one(
+    path: str, cfg: Config, out: Path, smooth: bool, strict: bool
+) -> tuple[bool, str]:
+    """One mission of ``--each``: whether it was replayed, and what ``navd replay PATH``
+    would print (a worker process sends back this, not the outputs)."""
     err = io.StringIO()
     try:
         replay(path, cfg, out, smooth=smooth, strict=strict, err=err)
     except (ConfigError, LogError) as exc:
         err.write(f"navd: {exc}\n")
-    return err.getvalue()
+        return False, err.getvalue()
+    return True, err.getvalue()

@@ -81,9 +81,10 @@ def _ne_error(lat: float, lon: float, lat_t: float, lon_t: float) -> tuple[float
     Errors under a kilometre, nearly all of them, are the latitude and longitude
     differences times the meridian and prime-vertical radii at the middle latitude
     (Rapp 1991, Geometric Geodesy I, 3.4): their length is the geodesic's within 2e-4 m
-    up to 84 degrees of latitude, at a hundredth of the cost of the inverse geodesic.
-    Their direction is the middle latitude's north, which turns from the truth's by
-    under 2e-4 rad for 1 km.
+    up to 84 degrees of latitude (tests/test_score.py), without the inverse geodesic that
+    was most of a Monte Carlo mission's time.  Their direction is the middle latitude's
+    north, which turns from the truth's by up to d tan(lat) / 2N (the meridians'
+    convergence over half the error): 8e-5 rad for 1 km at 45 degrees, 7e-4 rad at 84.
     """
     dlon = math.radians((lon - lon_t + 180.0) % 360.0 - 180.0)
     dlat = math.radians(lat - lat_t)

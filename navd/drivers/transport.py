@@ -121,7 +121,7 @@ class SerialTransport:
             return
         try:
             # the loop said the descriptor is readable: read it, without pyserial's own
-            # select() before every read (a third of the daemon's I/O cost)
+            # select() before every read (it shows in `bench.daemon_perf --profile`)
             data = os.read(ser.fileno(), 4096)
         except (BlockingIOError, InterruptedError):
             return  # woken with nothing to read after all; the next wake-up reads it
