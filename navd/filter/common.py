@@ -190,16 +190,26 @@ class NavFilter(Protocol):
     navigator testing which mode it has.
     """
 
-    initialised: bool
     history: History
-    x: Any  # the state vector (its first two: latitude and longitude, radians)
-    P: np.ndarray
+
+    @property
+    def initialised(self) -> bool: ...
+
+    @property
+    def x(self) -> Any:
+        """The state vector (its first two: latitude and longitude, radians)."""
+
+    @property
+    def P(self) -> np.ndarray: ...
+
     #: the range as the modem computed it, not re-derived with the water's sound speed
     ranges_as_reported: bool
     #: ranges are fused only while there is no fresh GPS fix (seed 000 Algorithm 2)
     ranges_only_without_gps: bool
-    #: normalised innovation squared of the last range (NaN: the mode has no gate)
-    last_nis: float
+    @property
+    def last_nis(self) -> float:
+        """Normalised innovation squared of the last range (NaN: the mode has no gate)."""
+
 
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None: ...
 

@@ -103,6 +103,7 @@ class RangeEKF:
         self.t_anchor = 0.0  # when the position was last pinned (GPS, re-acquisition)
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
         self.last_nis = math.nan  # normalised innovation squared of the last range
+        self.last_s = math.nan  # and its innovation variance (m^2)
         # NIS of the last accepted ranges, and the 99 % bound of their sum (chi-square)
         self._nis: deque[float] = deque(maxlen=2 * reacquire_after)
         self._nis_limit = chi2_quantile(0.99, 2 * reacquire_after)
@@ -302,6 +303,7 @@ class RangeEKF:
         S = float(H @ self.P @ H) + r_var
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
+        self.last_s = S
         self.last_nis = residual * residual / S
         while self._window and m.t - self._window[0][0].t > _WINDOW_S:
             self._window.popleft()

@@ -22,6 +22,7 @@ from navd.acoustics import slant_range
 from navd.config import Beacon, Config
 from navd.filter import compass
 from navd.filter.advisory import Observability
+from navd.filter.bank import CalibrationBank
 from navd.filter.beacons import BeaconResolver
 from navd.filter.common import (
     GateDecision,
@@ -32,7 +33,6 @@ from navd.filter.common import (
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
-from navd.filter.ekf import RangeEKF
 from navd.filter.estimate import fill
 from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
 from navd.filter.integrity import Integrity
@@ -79,7 +79,7 @@ def make_filter(cfg: Config) -> NavFilter:
             nz.thesis_current_walk_mps_per_sqrt_s,
         )
     g = nav.gate
-    return RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
+    return CalibrationBank(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
 
 
 class Navigator:

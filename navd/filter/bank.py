@@ -1,0 +1,205 @@
+"""Two range EKFs that differ in what they believe of the calibration, weighed by the ranges.
+
+The config's priors on the current, the compass bias and the speed scale are a
+belief, and can be wrong by ten times (a site's current guessed from a chart, an
+AHRS calibrated on another boat).  One filter that trusts them, told otherwise by
+every range, either rejects the ranges (its covariance says they cannot be) or,
+grown to take them, opens its gate to the multipath replies of a single beacon
+(BENCHMARKS.md, "Honest uncertainty near the bound").
+
+So navd runs both beliefs as a multiple-model bank (Bar-Shalom, Li and
+Kirubarajan 2001, 11.6; Magill 1965): ``config`` with the config's priors and
+random walks, and ``uncalibrated`` with both widened to what an uncalibrated
+vehicle in unknown water has.  Each has its own gate, its Huber weighting and its
+re-acquisition, so neither is dragged by the other's mistakes.  Each range weighs
+them by how likely each filter found it, under a likelihood with an outlier part
+(a multipath reply is not evidence against either).  The estimate is the mixture:
+its mean the weighted mean, its covariance the weighted covariances plus the
+spread of the means, so while the evidence is split the published ellipse holds
+both.  A transition probability per range keeps either belief from being ruled
+out for good: a tidal stream that turns can make a config right at the start
+wrong later.
+
+When the uncalibrated filter carries nearly all the weight, the config filter
+takes its state and covariance (the config's beliefs were wrong, and what the
+ranges taught replaces them); the smoother and the checkpoint follow the config
+filter, so that move is one correction in its history, as a re-acquisition is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from navd import geodesy
+from navd.config import NoiseConfig
+from navd.filter.common import Corrections, GateDecision, RangeMeas, StateEstimate
+from navd.filter.ekf import RangeEKF
+from navd.filter.lsfix import Fix
+
+# The uncalibrated belief: the config's priors times _WIDEN (the Monte Carlo's wrong
+# priors are 3 to 10 times too small) and its walks times _WIDEN_WALK, capped at what a
+# small AUV's sensors and a coastal site make plausible.
+_WIDEN = 10.0
+_WIDEN_WALK = 5.0
+_MAX_CURRENT_STD_FRACTION = 0.5  # of max_current_mps, per axis
+_MAX_BIAS_STD_DEG = 15.0
+_MAX_SCALE_STD = 0.25
+_MAX_CURRENT_WALK = 0.01  # m/s per sqrt(s): 0.6 m/s in an hour, a fast tidal turn
+# A range either came from the filter's model or is an outlier (multipath, a corrupt
+# position), spread evenly over the multipath lengths of a coastal site.
+_OUTLIER_PROB = 0.3
+_OUTLIER_SPREAD_M = 300.0
+# The chance per range that the belief that holds has changed.  It is also the least
+# weight either keeps, so the ellipse always holds a twentieth of the other belief's
+# spread: smaller (0.01, measured) left the truth outside it for the minutes the
+# evidence takes to build.
+_SWITCH = 0.05
+_PRIOR = 0.5  # before any range, neither belief is the likelier
+
+
+def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
+    """The config's noise with the calibration's priors and walks widened."""
+
+    def wider(v: float, k: float, cap: float) -> float:
+        return max(v, min(k * v, cap))
+
+    return replace(
+        nz,
+        current_init_std_mps=wider(
+            nz.current_init_std_mps, _WIDEN, _MAX_CURRENT_STD_FRACTION * max_current_mps
+        ),
+        heading_bias_init_std_deg=wider(nz.heading_bias_init_std_deg, _WIDEN, _MAX_BIAS_STD_DEG),
+        speed_scale_init_std=wider(nz.speed_scale_init_std, _WIDEN, _MAX_SCALE_STD),
+        current_walk_mps_per_sqrt_s=wider(
+            nz.current_walk_mps_per_sqrt_s, _WIDEN_WALK, _MAX_CURRENT_WALK
+        ),
+        heading_bias_walk_deg_per_sqrt_s=_WIDEN_WALK * nz.heading_bias_walk_deg_per_sqrt_s,
+        speed_scale_walk_per_sqrt_s=_WIDEN_WALK * nz.speed_scale_walk_per_sqrt_s,
+    )
+
+
+def range_likelihood(residual: float, s: float) -> float:
+    """p(range | a filter's prediction): Gaussian in the innovation, or an outlier."""
+    floor = _OUTLIER_PROB / _OUTLIER_SPREAD_M
+    if not (s > 0.0 and math.isfinite(s) and math.isfinite(residual)):
+        return floor
+    g = math.exp(-0.5 * residual * residual / s) / math.sqrt(2.0 * math.pi * s)
+    return (1.0 - _OUTLIER_PROB) * g + floor
+
+
+class CalibrationBank:
+    """The default mode: the config filter and the uncalibrated one, weighed by the ranges."""
+
+    ranges_as_reported = False
+    ranges_only_without_gps = False
+
+    def __init__(
+        self,
+        noise: NoiseConfig,
+        gate_chi2: float,
+        gate_chi2_long: float,
+        reacquire_after: int,
+        max_current_mps: float = 2.0,
+    ) -> None:
+        self.config = RangeEKF(noise, gate_chi2, gate_chi2_long, reacquire_after, max_current_mps)
+        self.uncal = RangeEKF(
+            uncalibrated_noise(noise, max_current_mps),
+            gate_chi2,
+            gate_chi2_long,
+            reacquire_after,
+            max_current_mps,
+        )
+        self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
+        self.history = self.config.history
+
+    # what the smoother, the checkpoint and the navigator's gates see: the config filter
+    @property
+    def x(self) -> np.ndarray:
+        return self.config.x
+
+    @property
+    def P(self) -> np.ndarray:
+        return self.config.P
+
+    @property
+    def initialised(self) -> bool:
+        return self.config.initialised
+
+    @property
+    def last_nis(self) -> float:
+        return self.config.last_nis
+
+    def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
+        self.config.initialise(lat, lon, std_m, t)
+        self.uncal.initialise(lat, lon, std_m, t)
+        self.w_uncal = _PRIOR
+
+    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+        """A checkpoint: the config filter's state; the uncalibrated belief the same, its
+        calibration's covariance scaled as its priors are to the config's."""
+        self.config.restore(x, P, grow_m2)
+        a, b = self.config.noise, self.uncal.noise
+        k = np.ones(len(x))
+        k[2:6] = (
+            b.current_init_std_mps / a.current_init_std_mps,
+            b.current_init_std_mps / a.current_init_std_mps,
+            b.heading_bias_init_std_deg / a.heading_bias_init_std_deg,
+            b.speed_scale_init_std / a.speed_scale_init_std,
+        )
+        self.uncal.restore(x, P * np.outer(k, k), grow_m2)
+        self.w_uncal = _PRIOR
+
+    def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
+        self.config.predict(t, dt, heading, speed, hd)
+        self.uncal.predict(t, dt, heading, speed, hd)
+
+    def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
+        self.config.gps_update(lat, lon, std_m, hd)
+        self.uncal.gps_update(lat, lon, std_m, hd)
+
+    def range_update(self, m: RangeMeas) -> GateDecision:
+        decision = self.config.range_update(m)
+        du = self.uncal.range_update(m)
+        lc = range_likelihood(decision.residual_m, self.config.last_s)
+        lu = range_likelihood(du.residual_m, self.uncal.last_s)
+        # the transition, then the evidence (Bayes' rule over the two beliefs)
+        w = (1.0 - _SWITCH) * self.w_uncal + _SWITCH * (1.0 - self.w_uncal)
+        num = w * lu
+        den = num + (1.0 - w) * lc
+        self.w_uncal = num / den if den > 0.0 and math.isfinite(den) else w
+        return decision
+
+    def estimate(self) -> StateEstimate:
+        a = self.config.estimate()
+        b = self.uncal.estimate()
+        w = self.w_uncal
+        # the uncalibrated mean seen from the config's, in metres north and east
+        e, n, _ = geodesy.enu_offset(a.lat, a.lon, 0.0, b.lat, b.lon, 0.0)
+        return StateEstimate(
+            a.lat,
+            a.lon,
+            a.current_n,
+            a.current_e,
+            (1.0 - w) * a.var_n + w * (b.var_n + n * n),
+            (1.0 - w) * a.var_e + w * (b.var_e + e * e),
+            (1.0 - w) * a.cov_ne + w * (b.cov_ne + n * e),
+        )
+
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
+        """A state of the config filter's chain (the smoother's), as that filter gives it."""
+        return self.config.estimate_of(x, P)
+
+    def apply_fix(self, fix: Fix) -> None:
+        """Ranges reach this mode one by one; the net's fix only starts it without GPS."""
+
+    def corrections(self) -> Corrections | None:
+        return self.config.corrections()
+
+    def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return self.config.state_diff(a, b)
+
+    def state_apply(self, x: np.ndarray, dx: np.ndarray, hd: float = 0.0) -> np.ndarray:
+        return self.config.state_apply(x, dx, hd)
