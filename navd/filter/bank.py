@@ -3,27 +3,27 @@
 The config's priors on the current, the compass bias and the speed scale are a
 belief, and can be wrong by ten times (a site's current guessed from a chart, an
 AHRS calibrated on another boat).  One filter that trusts them, told otherwise by
-every range, either rejects the ranges (its covariance says they cannot be) or,
-grown to take them, opens its gate to the multipath replies of a single beacon
-(BENCHMARKS.md, "Honest uncertainty near the bound").
+the ranges, rejects them (its covariance says they cannot be) and stays sure of a
+position it has lost.  Grown to take them, it opens its gate to the multipath
+replies of a single beacon (BENCHMARKS.md, "Honest uncertainty near the bound").
 
-So navd runs both beliefs as a multiple-model bank (Bar-Shalom, Li and
-Kirubarajan 2001, 11.6; Magill 1965): ``config`` with the config's priors and
-random walks, and ``uncalibrated`` with both widened to what an uncalibrated
-vehicle in unknown water has.  Each has its own gate, its Huber weighting and its
-re-acquisition, so neither is dragged by the other's mistakes.  Each range weighs
-them by how likely each filter found it, under a likelihood with an outlier part
-(a multipath reply is not evidence against either).  The estimate is the mixture:
-its mean the weighted mean, its covariance the weighted covariances plus the
-spread of the means, so while the evidence is split the published ellipse holds
-both.  A transition probability per range keeps either belief from being ruled
-out for good: a tidal stream that turns can make a config right at the start
-wrong later.
+So the default mode runs both beliefs as a multiple-model bank (Bar-Shalom, Li and
+Kirubarajan 2001, 11.6): ``config`` with the config's priors, and ``uncal`` with
+them widened to what an uncalibrated vehicle in unknown water has.  Each has its
+own gate, Huber weighting and re-acquisition, so neither is dragged by the other.
+Each range weighs them by how likely each filter found it, under a likelihood with
+an outlier part, so a multipath reply that both refuse is evidence for neither.  A
+transition probability per range keeps either belief alive.
 
-When the uncalibrated filter carries nearly all the weight, the config filter
-takes its state and covariance (the config's beliefs were wrong, and what the
-ranges taught replaces them); the smoother and the checkpoint follow the config
-filter, so that move is one correction in its history, as a re-acquisition is.
+The estimate is the config filter's mean with the covariance of the mixture about
+it, ``(1 - w) P_c + w (P_u + d d^T)``, ``d`` the uncalibrated filter's mean seen
+from it and ``w`` its weight: while the ranges say the config may be wrong, the
+published ellipse holds where the other belief puts the vehicle, and integrity
+degrades with it.  The mean is not moved to the mixture's: with one beacon a wrong
+filter still predicts the next range well while it sits on the same circle, so a
+few ranges can give a diverged ``uncal`` nearly all the weight, and following it
+made the drawn missions worse (BENCHMARKS.md).  The smoother and the checkpoint
+follow the config filter.
 """
 
 from __future__ import annotations
@@ -40,14 +40,14 @@ from navd.filter.ekf import RangeEKF
 from navd.filter.lsfix import Fix
 
 # The uncalibrated belief: the config's priors times _WIDEN (the Monte Carlo's wrong
-# priors are 3 to 10 times too small) and its walks times _WIDEN_WALK, capped at what a
-# small AUV's sensors and a coastal site make plausible.
+# priors are 3 to 10 times too small), capped at what a small AUV's sensors and a
+# coastal site make plausible.  Its random walks are the config's: with one beacon, a
+# current walk five times wider made the filter itself inconsistent (tests/test_bank.py's
+# mission: the truth inside its 99 % ellipse on 7 % of ranges, against 100 % without).
 _WIDEN = 10.0
-_WIDEN_WALK = 5.0
 _MAX_CURRENT_STD_FRACTION = 0.5  # of max_current_mps, per axis
 _MAX_BIAS_STD_DEG = 15.0
 _MAX_SCALE_STD = 0.25
-_MAX_CURRENT_WALK = 0.01  # m/s per sqrt(s): 0.6 m/s in an hour, a fast tidal turn
 # A range either came from the filter's model or is an outlier (multipath, a corrupt
 # position), spread evenly over the multipath lengths of a coastal site.
 _OUTLIER_PROB = 0.3
@@ -61,7 +61,7 @@ _PRIOR = 0.5  # before any range, neither belief is the likelier
 
 
 def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
-    """The config's noise with the calibration's priors and walks widened."""
+    """The config's noise with the calibration's priors widened."""
 
     def wider(v: float, k: float, cap: float) -> float:
         return max(v, min(k * v, cap))
@@ -73,11 +73,6 @@ def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
         ),
         heading_bias_init_std_deg=wider(nz.heading_bias_init_std_deg, _WIDEN, _MAX_BIAS_STD_DEG),
         speed_scale_init_std=wider(nz.speed_scale_init_std, _WIDEN, _MAX_SCALE_STD),
-        current_walk_mps_per_sqrt_s=wider(
-            nz.current_walk_mps_per_sqrt_s, _WIDEN_WALK, _MAX_CURRENT_WALK
-        ),
-        heading_bias_walk_deg_per_sqrt_s=_WIDEN_WALK * nz.heading_bias_walk_deg_per_sqrt_s,
-        speed_scale_walk_per_sqrt_s=_WIDEN_WALK * nz.speed_scale_walk_per_sqrt_s,
     )
 
 

@@ -1,0 +1,115 @@
+"""The calibration bank: honest when the config's priors are wrong, the config's mean always."""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+
+from navd import geodesy
+from navd.config import NoiseConfig
+from navd.filter.bank import CalibrationBank, range_likelihood, uncalibrated_noise
+from navd.filter.common import RangeMeas, StateEstimate
+
+R = math.radians
+LAT, LON = R(38.32), R(-76.39)
+CHI2_2DOF_99 = 9.21
+
+
+def _inside99(est: StateEstimate, lat: float, lon: float) -> bool:
+    e, n, _ = geodesy.enu_offset(est.lat, est.lon, 0.0, lat, lon, 0.0)
+    P = np.array([[est.var_n, est.cov_ne], [est.cov_ne, est.var_e]])
+    v = np.array([n, e])
+    return float(v @ np.linalg.solve(P, v)) <= CHI2_2DOF_99
+
+
+def _run(noise: NoiseConfig, current: tuple[float, float], seed: int, minutes: float = 30.0,
+         outliers: float = 0.0) -> tuple[CalibrationBank, list[tuple[bool, bool]]]:
+    """A vehicle on legs of 5 minutes under a boat 500 m away, ranges every 10 s.
+
+    Per range after the first five minutes: is the truth inside the bank's 99 %
+    ellipse, and inside the config filter's own?
+    """
+    rng = random.Random(seed)
+    bank = CalibrationBank(noise, 9.0, 4.0, 3, max_current_mps=2.0)
+    bank.initialise(LAT, LON, 3.0, 0.0)
+    blat, blon = geodesy.offset_position(LAT, LON, 500.0, 200.0)
+    true_n = true_e = 0.0
+    heading = R(rng.uniform(0.0, 360.0))
+    seen = []
+    for k in range(1, int(minutes * 6) + 1):
+        if k % 30 == 0:
+            heading += R(rng.choice([90.0, 180.0, 270.0]))
+        for _ in range(100):
+            bank.predict(bank.config.t + 0.1, 0.1, heading, 1.5, -2.0)
+            true_n += 0.1 * (1.5 * math.cos(heading) + current[0])
+            true_e += 0.1 * (1.5 * math.sin(heading) + current[1])
+        vlat, vlon = geodesy.offset_position(LAT, LON, true_n, true_e)
+        r = geodesy.ecef_distance(vlat, vlon, -2.0, blat, blon, -2.0) + rng.gauss(0.0, 1.0)
+        if rng.random() < outliers:
+            r += rng.uniform(3.0, 300.0)
+        t = bank.config.t
+        bank.range_update(RangeMeas(t, t, r, "boat", blat, blon, -2.0, -2.0, 1.0))
+        if k > 30:
+            seen.append((_inside99(bank.estimate(), vlat, vlon),
+                         _inside99(bank.config.estimate(), vlat, vlon)))
+    return bank, seen
+
+
+def test_a_current_ten_times_its_prior_stays_inside_the_published_ellipse() -> None:
+    """The config says 0.04 m/s; the water runs at 0.45 m/s.  The config filter alone
+    loses the truth from its ellipse; the bank's ellipse keeps it."""
+    bank_in, alone_in = [], []
+    for seed in range(1, 9):
+        _, seen = _run(NoiseConfig(current_init_std_mps=0.04), (0.25, -0.37), seed)
+        bank_in += [b for b, _ in seen]
+        alone_in += [a for _, a in seen]
+    alone, bank = sum(alone_in) / len(alone_in), sum(bank_in) / len(bank_in)
+    assert alone < 0.5  # the case the bank is for
+    # one of the eight loses it in both beliefs (a single beacon's geometry)
+    assert bank >= 0.85
+
+
+def test_a_right_config_keeps_the_config_filters_position_and_about_its_ellipse() -> None:
+    """With the config right, heavy multipath: the published position is the config
+    filter's, the ellipse not much wider than its own, and the truth inside it."""
+    bank, seen = _run(NoiseConfig(), (0.1, 0.05), 3, minutes=20.0, outliers=0.3)
+    a, b = bank.config.estimate(), bank.estimate()
+    assert (b.lat, b.lon, b.current_n, b.current_e) == (a.lat, a.lon, a.current_n, a.current_e)
+    assert b.var_n + b.var_e < 1.5**2 * (a.var_n + a.var_e)
+    assert sum(x for x, _ in seen) / len(seen) >= 0.95
+
+
+def test_the_uncalibrated_belief_is_wider_but_bounded() -> None:
+    nz = NoiseConfig(current_init_std_mps=0.05, heading_bias_init_std_deg=1.0,
+                     speed_scale_init_std=0.1)
+    u = uncalibrated_noise(nz, max_current_mps=2.0)
+    assert u.current_init_std_mps == 0.5
+    assert u.heading_bias_init_std_deg == 10.0
+    assert u.speed_scale_init_std == 0.25  # ten times would be a scale of 0 or 2
+    # a config already wider than the caps is kept as it is
+    wide = uncalibrated_noise(NoiseConfig(current_init_std_mps=3.0), max_current_mps=2.0)
+    assert wide.current_init_std_mps == 3.0
+
+
+def test_a_restored_checkpoint_widens_only_the_uncalibrated_calibration() -> None:
+    bank, _ = _run(NoiseConfig(), (0.1, 0.0), 1, minutes=8.0)
+    x, P = bank.config.x.copy(), bank.config.P.copy()
+    fresh = CalibrationBank(NoiseConfig(), 9.0, 4.0, 3)
+    fresh.initialise(float(x[0]), float(x[1]), 1.0, 0.0)
+    fresh.restore(x, P, 25.0)
+    assert np.allclose(fresh.config.P[2:, 2:], P[2:, 2:])
+    u = uncalibrated_noise(NoiseConfig(), 2.0)
+    k = u.current_init_std_mps / NoiseConfig().current_init_std_mps
+    assert math.isclose(fresh.uncal.P[2, 2], P[2, 2] * k * k)
+    assert math.isclose(fresh.uncal.P[0, 0], P[0, 0] + 25.0)
+
+
+def test_the_likelihood_of_any_range_is_finite_and_positive() -> None:
+    for residual, s in ((0.0, 1.0), (1e6, 1.0), (float("nan"), 4.0), (3.0, 0.0), (3.0, math.inf),
+                        (-math.inf, 2.0)):
+        v = range_likelihood(residual, s)
+        assert math.isfinite(v) and v > 0.0
+    # an outlier is evidence for neither belief: far residuals all have the floor's likelihood
+    assert math.isclose(range_likelihood(500.0, 9.0), range_likelihood(900.0, 25.0))
