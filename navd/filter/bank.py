@@ -171,8 +171,13 @@ class CalibrationBank:
         a = self.config.estimate()
         b = self.uncal.estimate()
         w = self.w_uncal
-        # the uncalibrated mean seen from the config's, in metres north and east
-        e, n, _ = geodesy.enu_offset(a.lat, a.lon, 0.0, b.lat, b.lon, 0.0)
+        # the uncalibrated mean seen from the config's, in metres north and east, on the
+        # ellipsoid's radii of curvature: the two are at most kilometres apart, where
+        # this is good to a part in 10^4, plenty for a spread
+        n = (b.lat - a.lat) * geodesy.meridian_radius(a.lat)
+        e = geodesy.wrap_lon(b.lon - a.lon) * geodesy.prime_vertical_radius(a.lat) * math.cos(a.lat)
+        if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
+            return a  # a broken other belief says nothing of this one's spread
         return StateEstimate(
             a.lat,
             a.lon,
