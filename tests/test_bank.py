@@ -113,3 +113,18 @@ def test_the_likelihood_of_any_range_is_finite_and_positive() -> None:
         assert math.isfinite(v) and v > 0.0
     # an outlier is evidence for neither belief: far residuals all have the floor's likelihood
     assert math.isclose(range_likelihood(500.0, 9.0), range_likelihood(900.0, 25.0))
+
+
+def test_the_estimate_says_how_much_the_ranges_doubt_the_calibration() -> None:
+    """``calibration_doubt``: near 0.5 while the ranges cannot tell, towards 1 when they say
+    the config's priors were wrong."""
+    wrong = [_run(NoiseConfig(current_init_std_mps=0.04), (0.25, -0.37), s)[0] for s in (1, 2, 6)]
+    right = [_run(NoiseConfig(current_init_std_mps=0.45), (0.25, -0.37), s)[0] for s in (1, 2, 6)]
+    doubt = []
+    for b in wrong + right:
+        c = b.corrections()
+        assert c is not None and c.calibration_doubt is not None
+        assert 0.0 <= c.calibration_doubt <= 1.0
+        doubt.append(c.calibration_doubt)
+    assert sum(doubt[:3]) / 3 > 0.65
+    assert max(doubt[3:]) < 0.55

@@ -196,7 +196,8 @@ class CalibrationBank:
         """Ranges reach this mode one by one; the net's fix only starts it without GPS."""
 
     def corrections(self) -> Corrections | None:
-        return self.config.corrections()
+        c = self.config.corrections()
+        return None if c is None else replace(c, calibration_doubt=self.w_uncal)
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return self.config.state_diff(a, b)

@@ -181,6 +181,8 @@ class Corrections:
     speed_scale: float  # times the speed from the RPM map
     beacon_offset_n: float  # m, the error of the position the beacon reports
     beacon_offset_e: float
+    # the weight of the belief that the config's calibration priors are wrong (the bank's)
+    calibration_doubt: float | None = None
 
 
 class NavFilter(Protocol):

@@ -523,6 +523,7 @@ class Navigator:
             r.speed_scale = c.speed_scale
             r.beacon_offset_n = c.beacon_offset_n
             r.beacon_offset_e = c.beacon_offset_e
+            r.calibration_doubt = c.calibration_doubt
             heading += c.heading_bias
             speed *= c.speed_scale
         r.heading_deg = math.degrees(geodesy.wrap_lon(heading)) % 360.0
