@@ -243,4 +243,3 @@ def from_dict(cls: type[T], d: dict[str, Any]) -> T:
     """
     known = _KNOWN[cls]
     return cls(**{k: v for k, v in d.items() if k in known})
-

@@ -11,6 +11,7 @@ from navd import geodesy
 from navd.config import NoiseConfig
 from navd.filter.bank import CalibrationBank, range_likelihood, uncalibrated_noise
 from navd.filter.common import RangeMeas, StateEstimate
+from navd.filter.ekf import RangeEKF
 
 R = math.radians
 LAT, LON = R(38.32), R(-76.39)
@@ -32,7 +33,7 @@ def _run(noise: NoiseConfig, current: tuple[float, float], seed: int, minutes: f
     ellipse, and inside the config filter's own?
     """
     rng = random.Random(seed)
-    bank = CalibrationBank(noise, 9.0, 4.0, 3, max_current_mps=2.0)
+    bank = CalibrationBank(RangeEKF(noise, 9.0, 4.0, 3, max_current_mps=2.0))
     bank.initialise(LAT, LON, 3.0, 0.0)
     blat, blon = geodesy.offset_position(LAT, LON, 500.0, 200.0)
     true_n = true_e = 0.0
@@ -96,7 +97,7 @@ def test_the_uncalibrated_belief_is_wider_but_bounded() -> None:
 def test_a_restored_checkpoint_widens_only_the_uncalibrated_calibration() -> None:
     bank, _ = _run(NoiseConfig(), (0.1, 0.0), 1, minutes=8.0)
     x, P = bank.config.x.copy(), bank.config.P.copy()
-    fresh = CalibrationBank(NoiseConfig(), 9.0, 4.0, 3)
+    fresh = CalibrationBank(RangeEKF(NoiseConfig(), 9.0, 4.0, 3))
     fresh.initialise(float(x[0]), float(x[1]), 1.0, 0.0)
     fresh.restore(x, P, 25.0)
     assert np.allclose(fresh.config.P[2:, 2:], P[2:, 2:])

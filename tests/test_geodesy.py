@@ -141,6 +141,15 @@ def test_enu_offset_and_offset_position_invert_each_other() -> None:
     assert n == pytest.approx(120.0, abs=0.05)
 
 
+@pytest.mark.parametrize("lat,lon", PLACES)
+def test_nearby_offset_is_the_geodesic_up_to_2km(lat: float, lon: float) -> None:
+    for azi in range(0, 360, 30):
+        for s in (1.0, 100.0, 2000.0):
+            g = G.Direct(lat, lon, azi, s)
+            n, e = geodesy.nearby_offset(R(lat), R(lon), R(g["lat2"]), R(g["lon2"]))
+            assert math.hypot(n, e) == pytest.approx(s, abs=1e-3)
+
+
 @given(st.floats(-1e4, 1e4))
 def test_wrap_lon_range(lon: float) -> None:
     w = geodesy.wrap_lon(lon)

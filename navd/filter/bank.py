@@ -91,22 +91,11 @@ class CalibrationBank:
     ranges_as_reported = False
     ranges_only_without_gps = False
 
-    def __init__(
-        self,
-        noise: NoiseConfig,
-        gate_chi2: float,
-        gate_chi2_long: float,
-        reacquire_after: int,
-        max_current_mps: float = 2.0,
-    ) -> None:
-        self.config = RangeEKF(noise, gate_chi2, gate_chi2_long, reacquire_after, max_current_mps)
-        self.uncal = RangeEKF(
-            uncalibrated_noise(noise, max_current_mps),
-            gate_chi2,
-            gate_chi2_long,
-            reacquire_after,
-            max_current_mps,
-        )
+    def __init__(self, config: RangeEKF) -> None:
+        """``config``: a fresh filter with the config's noise; its uncalibrated twin is made
+        from it."""
+        self.config = config
+        self.uncal = config.with_noise(uncalibrated_noise(config.noise, config.max_current))
         self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
         self.history = self.config.history
 
@@ -171,11 +160,8 @@ class CalibrationBank:
         a = self.config.estimate()
         b = self.uncal.estimate()
         w = self.w_uncal
-        # the uncalibrated mean seen from the config's, in metres north and east, on the
-        # ellipsoid's radii of curvature: the two are at most kilometres apart, where
-        # this is good to a part in 10^4, plenty for a spread
-        n = (b.lat - a.lat) * geodesy.meridian_radius(a.lat)
-        e = geodesy.wrap_lon(b.lon - a.lon) * geodesy.prime_vertical_radius(a.lat) * math.cos(a.lat)
+        # the uncalibrated mean seen from the config's (kilometres apart at most)
+        n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
         if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
             return a  # a broken other belief says nothing of this one's spread
         return StateEstimate(

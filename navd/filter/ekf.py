@@ -114,6 +114,12 @@ class RangeEKF:
         self._cum_n = 0.0
         self._cum_e = 0.0
 
+    def with_noise(self, noise: NoiseConfig) -> RangeEKF:
+        """A fresh filter with this one's gates and site limit, and another noise model."""
+        return RangeEKF(
+            noise, self.gate_chi2, self.gate_chi2_long, self.reacquire_after, self.max_current
+        )
+
     # -- initialisation and GPS -------------------------------------------------------
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         nz = self.noise

@@ -33,6 +33,7 @@ from navd.filter.common import (
 from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
+from navd.filter.ekf import RangeEKF
 from navd.filter.estimate import fill
 from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
 from navd.filter.integrity import Integrity
@@ -79,7 +80,9 @@ def make_filter(cfg: Config) -> NavFilter:
             nz.thesis_current_walk_mps_per_sqrt_s,
         )
     g = nav.gate
-    return CalibrationBank(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
+    return CalibrationBank(
+        RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
+    )
 
 
 class Navigator:
