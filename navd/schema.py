@@ -12,6 +12,7 @@ ranges too: there a range decision is written as ``decision`` (:data:`LOG_TYPE`)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from operator import attrgetter
 from typing import Any, TypeVar
@@ -29,7 +30,7 @@ def _optional() -> Any:
     return field(default=None, metadata={"optional": True})
 
 
-@dataclass(slots=True)
+@dataclass(frozen=True, slots=True)
 class Estimate:
     """One filter step (10 Hz). Positions WGS-84 degrees, lengths metres, speeds m/s."""
 
@@ -69,7 +70,7 @@ class Estimate:
     type: str = "estimate"
 
 
-@dataclass(slots=True)
+@dataclass(frozen=True, slots=True)
 class RangeDecision:
     """What the filter did with one range or travel time."""
 
@@ -89,7 +90,7 @@ class RangeDecision:
     type: str = "range"
 
 
-@dataclass(slots=True)
+@dataclass(frozen=True, slots=True)
 class Advisory:
     """How well the recent ranges fix each horizontal direction, and what would help."""
 
@@ -185,8 +186,23 @@ class _FlatPlan:
                 del out[name]
         return out
 
+    def finite(self, obj: Estimate | RangeDecision | Advisory) -> bool:
+        """Whether every number in it is finite (None, a string or a flag is not a number)."""
+        # one sum is NaN or infinite exactly when one of its terms is (all are bounded)
+        return math.isfinite(sum([v for v in self.get(obj) if type(v) is float]))
+
 
 _FLAT = {cls: _FlatPlan(cls) for cls in (Estimate, RangeDecision, Advisory)}
+
+#: what the navigator gives for a record or a tick, in time order
+Output = Estimate | RangeDecision
+#: what navd logs and publishes of its own
+Published = Estimate | RangeDecision | Advisory | Health
+
+
+def finite(obj: Estimate | RangeDecision | Advisory) -> bool:
+    """Whether every number of an estimate, decision or advisory is finite."""
+    return _FLAT[type(obj)].finite(obj)
 
 
 def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) -> dict[str, Any]:

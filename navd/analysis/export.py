@@ -11,70 +11,17 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from navd.analysis.replay import run_navigator
-from navd.analysis.surfacing import first_fix_after, surfacing_error_gps
+from navd.analysis.surfacing import surfacings
 from navd.config import Config
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementLog, read_measurement_log
-from navd.records import Gps, Record
-from navd.schema import outputs_of
-
-
-@dataclass(frozen=True, slots=True)
-class Surfacing:
-    """The last submerged estimate, the first GPS fix after it, and how far apart."""
-
-    t: float
-    lat: float
-    lon: float
-    fix_lat: float
-    fix_lon: float
-    error_m: float
-    after_s: float  # from the last submerged estimate to the fix
-
-
-@dataclass(slots=True)
-class Mission:
-    estimates: list[dict[str, Any]]
-    decisions: list[dict[str, Any]]
-    fixes: list[Gps]
-    records: list[Record]
-    epoch_s: float  # Unix time of t = 0 (the log's time base)
-    smoothed: list[dict[str, Any]] = field(default_factory=list)
-    health: list[dict[str, Any]] = field(default_factory=list)
-
-    def utc(self, t: float) -> dt.datetime:
-        return dt.datetime.fromtimestamp(self.epoch_s + t, dt.UTC)
-
-    def surfacings(self) -> list[Surfacing]:
-        """One per dive: where the vehicle thought it was when it came up, and GPS."""
-        out = []
-        dive: list[dict[str, Any]] = []
-        for e in self.estimates:
-            if e["mode"] == "submerged":
-                dive.append(e)
-            elif dive:
-                s = _surfacing(dive[-1], self.fixes)
-                if s is not None:
-                    out.append(s)
-                dive = []
-        if dive:
-            s = _surfacing(dive[-1], self.fixes)
-            if s is not None:
-                out.append(s)
-        return out
-
-
-def _surfacing(last: dict[str, Any], fixes: list[Gps]) -> Surfacing | None:
-    found = surfacing_error_gps([last], fixes)
-    fix = first_fix_after(last["t"], fixes)
-    if found is None or fix is None or fix.lat is None or fix.lon is None:
-        return None
-    return Surfacing(last["t"], last["lat"], last["lon"], fix.lat, fix.lon, *found)
+from navd.formats.mission import Mission
+from navd.records import Gps
+from navd.schema import Estimate, split_outputs
 
 
 def _epoch(header: dict[str, Any]) -> float:
@@ -113,12 +60,12 @@ def load_mission(paths: list[str | Path], cfg: Config, smooth: bool = False) -> 
         log.header = log.header or part.header
         log.records.extend(part.records)
     result = run_navigator(log, cfg, smooth=smooth)
-    smoothed: list[dict[str, Any]] = []
+    smoothed: list[Estimate] = []
     if smooth:
-        smoothed, _ = outputs_of(result.outputs)
-        est, dec = outputs_of(result.filtered)
+        smoothed, _ = split_outputs(result.outputs)
+        est, dec = split_outputs(result.filtered)
     else:
-        est, dec = outputs_of(result.outputs)
+        est, dec = split_outputs(result.outputs)
     fixes = [r for r in log.records if isinstance(r, Gps) and r.fix and r.lat is not None]
     return Mission(
         est,
@@ -128,4 +75,5 @@ def load_mission(paths: list[str | Path], cfg: Config, smooth: bool = False) -> 
         _epoch(log.header),
         smoothed,
         _health_lines([Path(p) for p in paths]),
+        surfacings(est, fixes),
     )

@@ -11,25 +11,26 @@ import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped
 from navd.records import Record
+from navd.schema import Estimate, Output, to_dict
 
 MAX_REPORTED_SKIPS = 20
 
 
 @dataclass(slots=True)
 class ReplayResult:
-    outputs: list[dict[str, Any]]
+    outputs: list[Output]
     skipped: list[Skipped]
     counters: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-    # with smoothing, the estimates as the filter made them (outputs has them smoothed)
-    filtered: list[dict[str, Any]] = field(default_factory=list)
+    # with smoothing, the outputs as the filter made them (outputs has them smoothed)
+    filtered: list[Output] = field(default_factory=list)
 
 
 @dataclass(slots=True)
@@ -51,7 +52,7 @@ def _check_smoothable(cfg: Config, smooth: bool) -> None:
 
 def navigate(
     nav: Navigator, records: Iterable[Record], checked: bool = False
-) -> Iterator[dict[str, Any]]:
+) -> Iterator[Output]:
     """The navigator's outputs over the records, as they come, up to the last record.
 
     ``checked``: every record has passed :func:`navd.records.implausible` (a log
@@ -65,15 +66,15 @@ def navigate(
         yield from nav.advance(last.t)
 
 
-def _smoothed(nav: Navigator, outputs: Iterable[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+def _smoothed(nav: Navigator, outputs: Iterable[Output]) -> Iterator[Output]:
     """The forward pass's outputs with each estimate replaced by its smoothed one.
 
     The forward pass runs to its end first; of its outputs only what is not an
     estimate is held (a few per ping), with the number of estimates before it."""
-    others: list[tuple[int, dict[str, Any]]] = []
+    others: list[tuple[int, Output]] = []
     n = 0
     for o in outputs:
-        if o["type"] == "estimate":
+        if isinstance(o, Estimate):
             n += 1
         else:
             others.append((n, o))
@@ -93,14 +94,14 @@ def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> Rep
     _check_smoothable(cfg, smooth)
     nav = Navigator(cfg, keep_history=smooth)
     outputs = list(navigate(nav, log.records))
-    filtered: list[dict[str, Any]] = []
+    filtered: list[Output] = []
     if smooth:
         filtered, outputs = outputs, list(_smoothed(nav, outputs))
     return ReplayResult(outputs, log.skipped, dict(nav.counters), nav.warnings, filtered)
 
 
-def write_outputs(outputs: Iterable[dict[str, Any]], fh: IO[str]) -> None:
-    fh.writelines(jsonlines.dumps_line(o) for o in outputs)
+def write_outputs(outputs: Iterable[Output], fh: IO[str]) -> None:
+    fh.writelines(jsonlines.dumps_line(to_dict(o)) for o in outputs)
 
 
 def _is_empty(path: str | Path) -> bool:
@@ -172,12 +173,12 @@ def replay(
     estimates = 0
     try:
         with tmp.open("w", encoding="utf-8") as fh:
-            outputs: Iterable[dict[str, Any]] = navigate(nav, logs, checked=True)
+            outputs: Iterable[Output] = navigate(nav, logs, checked=True)
             if smooth:
                 outputs = _smoothed(nav, outputs)
             for o in outputs:
-                estimates += o["type"] == "estimate"
-                fh.write(jsonlines.dumps_line(o))
+                estimates += isinstance(o, Estimate)
+                fh.write(jsonlines.dumps_line(to_dict(o)))
     except BaseException:
         tmp.unlink(missing_ok=True)  # a strict replay stopped by a bad line leaves nothing
         raise

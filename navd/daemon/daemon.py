@@ -19,6 +19,7 @@ import os
 import time
 from collections import deque
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, TypeVar
 
 from navd.config import Config, log_dir
@@ -38,7 +39,7 @@ from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
 from navd.records import MAX_BEACONS, Reset, Resume, SetBeacon, implausible
-from navd.schema import Health, to_dict
+from navd.schema import Estimate, Health, Output, RangeDecision
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log
@@ -119,7 +120,7 @@ class Daemon:
         self.overruns = 0
         self.ticks = 0
         self.fused = 0  # range decisions the filter made: every range should get one
-        self.latest: dict[str, Any] | None = None
+        self.latest: Estimate | None = None
         self._last_watchdog = -math.inf
         # exceptions of the navigator, by kind: caught so one bad record cannot stop
         # the daemon, logged once, shown in health
@@ -151,26 +152,27 @@ class Daemon:
             log.error("%s raised; restarting the filter (counted in health)", kind, exc_info=exc)
         self.nav.restart("internal_error")
 
-    def _outputs(self, outs: list[dict[str, Any]]) -> None:
+    def _outputs(self, outs: list[Output]) -> None:
         for o in outs:
             self.rlog.output(o)
-            if o["type"] == "estimate":
-                self._publish_estimate(o)
-                continue
-            self.fused += 1
-            if o.get("accepted"):
-                self.vitals.range_accepted(self.clock())
-            if self.pub is not None:
-                self.pub.put("range", o)
+            match o:
+                case Estimate():
+                    self._publish_estimate(o)
+                case RangeDecision():
+                    self.fused += 1
+                    if o.accepted:
+                        self.vitals.range_accepted(self.clock())
+                    if self.pub is not None:
+                        self.pub.put(o)
 
-    def _publish_estimate(self, est: dict[str, Any]) -> None:
-        body = dict(est)
-        body["t_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
-        self.latest = body
+    def _publish_estimate(self, est: Estimate) -> None:
+        # the log keeps the filter's time alone; zenoh's readers get the system's UTC too
+        utc = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+        self.latest = replace(est, t_utc=utc)
         self.vitals.estimate(self.clock())
         if self.pub is not None:
-            self.pub.put("estimate", body)
-        self.publish_latency.append(self.clock() - est["t"])
+            self.pub.put(self.latest)
+        self.publish_latency.append(self.clock() - est.t)
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
     def on_command(self, name: str, body: dict[str, Any]) -> str | None:
@@ -301,17 +303,17 @@ class Daemon:
                 dev.every_second(now)
             h = self.health()
             self.rlog.output(h)
-            heading = self.latest.get("heading_deg") if self.latest else None
+            heading = self.latest.heading_deg if self.latest else None
             adv = self.nav.advisory(now, heading)
             self.rlog.output(adv)
             if self.pub is not None:
-                self.pub.put("health", h)
-                self.pub.put("advisory", adv)
+                self.pub.put(h)
+                self.pub.put(adv)
 
     def _device(self, kind: type[D]) -> D | None:
         return next((d for d in self.devices.values() if isinstance(d, kind)), None)
 
-    def health(self) -> dict[str, Any]:
+    def health(self) -> Health:
         now = self.clock()
         devices = {name: dev.health(now) for name, dev in self.devices.items()}
         pinger = self._device(ModemPinger) or ModemPinger(self.cfg.devices.modem, self)
@@ -319,16 +321,17 @@ class Daemon:
         gps = self._device(GpsReceiver)
         motor = self._device(MotorController)
         lat = list(self.tick_lateness)
-        est = self.latest or {}
-        mode = est.get("mode", "waiting_for_gps")
+        est = self.latest
+        mode = est.mode if est else "waiting_for_gps"
         self.vitals.mode(now, mode)
         d = self.cfg.devices
         source = {"heading": d.ahrs, "rpm": d.motor, "depth": d.pressure}
         ages = {k: v for k, v in self.nav.input_ages(now).items() if source[k].enabled}
         degraded = self.vitals.problems(now, self.nav.filter.initialised, ages)
-        integrity = est.get("integrity", "lost")
+        integrity = est.integrity if est else "lost"
         if integrity != "ok" and self.nav.filter.initialised:
-            degraded.append(f"integrity {integrity}: {est.get('integrity_reason', '')}")
+            why = (est.integrity_reason if est else None) or ""
+            degraded.append(f"integrity {integrity}: {why}")
         for n, dev in self.devices.items():
             degraded += dev.problems(now, devices[n])
         if self._t_internal_error is not None and now - self._t_internal_error <= RECENT_S:
@@ -337,69 +340,67 @@ class Daemon:
             degraded.append("log")
         if self.publisher_factory is not None and self.pub is None:
             degraded.append(f"zenoh: not open ({self.zenoh_error or 'opening'}), retrying")
-        return to_dict(
-            Health(
-                t=now,
-                mode=mode,
-                integrity=integrity if self.nav.filter.initialised else "lost",
-                ok=not degraded,
-                degraded=degraded,
-                estimates_per_s=self.vitals.estimates_per_s(now),
-                input_age_s={k: None if v is None else round(v, 3) for k, v in ages.items()},
-                last_range_accepted_age_s=None
-                if self.vitals.t_range_accepted is None
-                else round(now - self.vitals.t_range_accepted, 3),
-                devices=devices,
-                pings={**pinger.pings, "fused": self.fused, "last": list(self.vitals.pings)},
-                modem={
-                    "mode": pinger.session.mode,
-                    "ready": pinger.session.ready,
-                    "escapes": pinger.session.escapes,
-                },
-                filter=dict(self.nav.counters),
-                ticks=self.ticks,
-                tick_overruns=self.overruns,
-                tick_lateness_ms={
-                    "p50": _ms(_percentile(lat, 0.5)),
-                    "p99": _ms(_percentile(lat, 0.99)),
-                    "max": _ms(max(lat) if lat else None),
-                },
-                # from the tick's deadline to the estimate handed to zenoh
-                publish_latency_ms={
-                    "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
-                    "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
-                },
-                log={
-                    "file": str(self.rlog.path) if self.rlog.path else None,
-                    "ok": not (self.rlog.degraded and self.rlog.errors),
-                    "lines": self.rlog.lines,
-                    "errors": self.rlog.errors,
-                    "dropped": self.rlog.dropped,
-                    "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
-                    "files_removed": self.rlog.removed_files,
-                    "last_error": self.rlog.last_error,
-                },
-                checkpoint=None
-                if self.checkpoints is None
-                else {
-                    "file": str(self.checkpoints.path),
-                    "written": self.checkpoints.written,
-                    "errors": self.checkpoints.errors,
-                    "last_error": self.checkpoints.last_error,
-                    "resumed": self.resumed,
-                },
-                zenoh={"open": False, "error": self.zenoh_error}
-                if self.pub is None
-                else {
-                    "open": True,
-                    "errors": self.pub.errors,
-                    "commands": dict(self.pub.commands),
-                },
-                temperature_c=pressure.temperature_c if pressure else None,
-                # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
-                gps_utc=gps.utc.isoformat() if gps and gps.utc else None,
-                esc=dict(motor.esc) if motor else {},
-            )
+        return Health(
+            t=now,
+            mode=mode,
+            integrity=integrity if self.nav.filter.initialised else "lost",
+            ok=not degraded,
+            degraded=degraded,
+            estimates_per_s=self.vitals.estimates_per_s(now),
+            input_age_s={k: None if v is None else round(v, 3) for k, v in ages.items()},
+            last_range_accepted_age_s=None
+            if self.vitals.t_range_accepted is None
+            else round(now - self.vitals.t_range_accepted, 3),
+            devices=devices,
+            pings={**pinger.pings, "fused": self.fused, "last": list(self.vitals.pings)},
+            modem={
+                "mode": pinger.session.mode,
+                "ready": pinger.session.ready,
+                "escapes": pinger.session.escapes,
+            },
+            filter=dict(self.nav.counters),
+            ticks=self.ticks,
+            tick_overruns=self.overruns,
+            tick_lateness_ms={
+                "p50": _ms(_percentile(lat, 0.5)),
+                "p99": _ms(_percentile(lat, 0.99)),
+                "max": _ms(max(lat) if lat else None),
+            },
+            # from the tick's deadline to the estimate handed to zenoh
+            publish_latency_ms={
+                "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
+                "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
+            },
+            log={
+                "file": str(self.rlog.path) if self.rlog.path else None,
+                "ok": not (self.rlog.degraded and self.rlog.errors),
+                "lines": self.rlog.lines,
+                "errors": self.rlog.errors,
+                "dropped": self.rlog.dropped,
+                "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
+                "files_removed": self.rlog.removed_files,
+                "last_error": self.rlog.last_error,
+            },
+            checkpoint=None
+            if self.checkpoints is None
+            else {
+                "file": str(self.checkpoints.path),
+                "written": self.checkpoints.written,
+                "errors": self.checkpoints.errors,
+                "last_error": self.checkpoints.last_error,
+                "resumed": self.resumed,
+            },
+            zenoh={"open": False, "error": self.zenoh_error}
+            if self.pub is None
+            else {
+                "open": True,
+                "errors": self.pub.errors,
+                "commands": dict(self.pub.commands),
+            },
+            temperature_c=pressure.temperature_c if pressure else None,
+            # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
+            gps_utc=gps.utc.isoformat() if gps and gps.utc else None,
+            esc=dict(motor.esc) if motor else {},
         )
 
     def _resume(self) -> None:

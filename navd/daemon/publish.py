@@ -33,7 +33,7 @@ import zenoh
 from navd.config import ZenohConfig
 from navd.formats import jsonlines
 from navd.records import BEACON_NAME, SetBeacon, implausible
-from navd.schema import SCHEMA_VERSION
+from navd.schema import SCHEMA_VERSION, Published, to_dict
 from navd.validation import Invalid, build, text
 from navd.zenohconf import read_zenoh_file
 
@@ -188,13 +188,16 @@ class Publisher:
             kind: TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST) for kind in ("reset", "beacon")
         }
 
-    def put(self, kind: str, body: dict[str, Any]) -> bytes:
+    def put(self, out: Published) -> bytes:
+        """Publish an output on its key (``auv/<vehicle>/nav/<its type>``)."""
+        kind = out.type
+        body = to_dict(out)
         self.seq[kind] += 1
         payload = encode(self.seq[kind], body)
         if kind == "estimate":
             with self._lock:
                 self._latest, self._t_latest = body, time.monotonic()
-            second = math.floor(body.get("t", 0.0))
+            second = math.floor(out.t)
             if second != self._second:
                 self._second = second
                 with contextlib.suppress(Exception):

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 
 from navd import geodesy
 from navd.filter.common import principal_axes
@@ -84,8 +85,11 @@ class Observability:
             turn_a = _wrap180(weak - heading_deg)
             turn_b = _wrap180(weak + 180.0 - heading_deg)
             turn = turn_a if abs(turn_a) <= abs(turn_b) else turn_b
-            adv.suggest_turn_deg = round(turn, 1)
-            adv.suggest_heading_deg = round((heading_deg + turn) % 360.0, 1)
+            adv = replace(
+                adv,
+                suggest_turn_deg=round(turn, 1),
+                suggest_heading_deg=round((heading_deg + turn) % 360.0, 1),
+            )
         return adv
 
 

@@ -13,17 +13,17 @@ import math
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import replace
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from navd import geodesy
 from navd.acoustics import slant_range
 from navd.config import Beacon, Config
-from navd.filter import compass
+from navd.filter import estimate
 from navd.filter.advisory import Observability
 from navd.filter.bank import CalibrationBank
-from navd.filter.beacons import BeaconResolver
+from navd.filter.beacons import BeaconFix, BeaconResolver
 from navd.filter.common import (
     GateDecision,
     NavFilter,
@@ -34,8 +34,8 @@ from navd.filter.deadreckoning import DeadReckoner
 from navd.filter.depth import DepthGauge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec
 from navd.filter.ekf import RangeEKF
-from navd.filter.estimate import fill
 from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
+from navd.filter.inputs import HeldInputs
 from navd.filter.integrity import Integrity
 from navd.filter.smoothing import Smoothing
 from navd.filter.thesis import ThesisEKF
@@ -61,9 +61,8 @@ from navd.records import (
     Velocity,
     implausible,
 )
-from navd.schema import Estimate, RangeDecision, to_dict
+from navd.schema import Advisory, Estimate, Output, RangeDecision, finite
 
-_FIX_MAX_AGE_S = 30.0  # an acoustic fix older than this is not published
 _TICK_SLACK_S = 1e-6  # far below a tick (0.01 s at 100 Hz), far above float rounding
 
 
@@ -118,8 +117,6 @@ class Navigator:
         self.net = VirtualNet()
         self.beacons = BeaconResolver(cfg.beacons, nav.gate)
         self.sound = nav.sound_speed.model_obj()
-        self.decl = math.radians(nav.magnetic_declination_deg)
-        self.deviation = tuple(nav.compass_deviation_deg)
         self.tick_dt = 1.0 / nav.rate_hz
         ig = nav.integrity
         self.integrity = Integrity(
@@ -130,16 +127,13 @@ class Navigator:
 
         self._tick_k: int | None = None
         self._t_filter: float | None = None
-        self._heading_deg: float | None = None
-        self._t_heading = -math.inf
-        self._rpm: float | None = None
-        self._t_rpm = -math.inf
+        self.inputs = HeldInputs(nav)
         self.depth = DepthGauge(cfg.site)
         self.gps = GpsFixes(nav, cfg.site)
         self.gps_gate = GpsGate(nav.gate.gps_chi2, nav.gate.gps_agree)
 
     # -- public ------------------------------------------------------------------------
-    def feed(self, rec: Record, checked: bool = False) -> list[dict[str, Any]]:
+    def feed(self, rec: Record, checked: bool = False) -> list[Output]:
         """Consume one record; return the outputs (ticks before it, its decision).
 
         ``checked``: the caller has put ``rec`` through :func:`implausible` already
@@ -275,7 +269,7 @@ class Navigator:
         )
         self.counters["resumed"] += 1
 
-    def advance(self, t: float) -> list[dict[str, Any]]:
+    def advance(self, t: float) -> list[Output]:
         """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,
         or the end of a log)."""
         if self._t_filter is not None and t - self._t_filter > self.nav.max_gap_s:
@@ -284,7 +278,7 @@ class Navigator:
             self.restart("after_gap")
         return self._ticks_until(t, inclusive=True)
 
-    def smoothed(self) -> Iterator[dict[str, Any]]:
+    def smoothed(self) -> Iterator[Estimate]:
         """Estimates re-written by the Rauch-Tung-Striebel smoother over the whole run,
         one at a time (nothing, unless made with ``keep_history``)."""
         if self.smoothing is not None:
@@ -295,10 +289,10 @@ class Navigator:
         return self.gps.surface_altitude
 
     # -- time --------------------------------------------------------------------------
-    def _ticks_until(self, t: float, inclusive: bool) -> list[dict[str, Any]]:
+    def _ticks_until(self, t: float, inclusive: bool) -> list[Output]:
         if self._tick_k is None:
             self._tick_k = math.ceil(t / self.tick_dt - 1e-9)
-        out = []
+        out: list[Output] = []
         while True:
             tk = self._tick_k * self.tick_dt
             if tk > t or (tk == t and not inclusive):
@@ -310,20 +304,10 @@ class Navigator:
             self._tick_k += 1
         return out
 
-    def _speed_heading(self, t: float) -> tuple[float, float]:
-        if self._heading_deg is None:
-            return 0.0, 0.0  # no compass yet: hold position rather than guess a direction
-        sp = self.nav.speed
-        rpm = self._rpm or 0.0
-        speed = rpm / sp.rpm_per_mps
-        if rpm > 0:  # ahead: the trial's offset, never a speed astern
-            speed = max(0.0, speed + sp.offset_mps)
-        return math.radians(self._heading_deg) + self.decl, speed
-
     def _propagate_to(self, t: float) -> None:
         if self._t_filter is not None and t > self._t_filter:
             # the virtual net's relative track: needs no absolute position
-            heading, speed = self._speed_heading(t)
+            heading, speed = self.inputs.heading_speed()
             self.net.move(speed * (t - self._t_filter), heading)
         if self._t_filter is None or not self.filter.initialised:
             self._t_filter = t
@@ -331,7 +315,7 @@ class Navigator:
         remaining = t - self._t_filter
         if remaining <= 0.0:
             return
-        heading, speed = self._speed_heading(t)
+        heading, speed = self.inputs.heading_speed()
         hd = self.surface_altitude - self.depth.m
         # Long gaps (a log with a hole) are crossed in steps of one tick.
         n = max(1, math.ceil(remaining / self.tick_dt - 1e-9))
@@ -345,15 +329,14 @@ class Navigator:
 
     # -- inputs ------------------------------------------------------------------------
     def _on_heading(self, rec: Heading) -> None:
-        self._heading_deg, self._t_heading = compass.correct(self.deviation, rec.deg), rec.t
+        self.inputs.heading(rec)
 
     def _on_attitude(self, rec: Attitude) -> None:
-        yaw = compass.correct(self.deviation, rec.yaw_deg)
-        self._heading_deg, self._t_heading = yaw, rec.t
+        yaw = self.inputs.attitude(rec)
         self.dvl.attitude(rec.roll_deg, rec.pitch_deg, yaw)
 
     def _on_rpm(self, rec: Rpm) -> None:
-        self._rpm, self._t_rpm = rec.rpm, rec.t
+        self.inputs.motor(rec)
 
     def _on_depth(self, rec: Depth) -> None:
         self.depth.depth(rec.t, rec.m)
@@ -401,38 +384,36 @@ class Navigator:
         self.dvl.reset(lat, lon, rec.t)
         self.counters["gps_fused"] += 1
 
-    def _on_range(self, rec: Range | TravelTime) -> dict[str, Any]:
-        out = RangeDecision(rec.t, rec.t_ping, rec.beacon)
-
-        def refuse(reason: str) -> dict[str, Any]:
-            self.counters[f"range_{reason}"] += 1
-            self.counters["ranges_rejected"] += 1
-            out.reason = reason
-            return to_dict(out)
-
+    def _on_range(self, rec: Range | TravelTime) -> RangeDecision:
         fix, why = self.beacons.resolve(
             rec.t, rec.beacon, rec.beacon_lat, rec.beacon_lon, rec.beacon_depth
         )
         if fix is None:
-            return refuse(why)
-        out.beacon_lat = math.degrees(fix.lat)
-        out.beacon_lon = math.degrees(fix.lon)
-        out.beacon_depth = fix.depth
+            return self._refused(RangeDecision(rec.t, rec.t_ping, rec.beacon, reason=why))
         if fix.predicted_s > 0.0:
-            out.beacon_predicted_s = fix.predicted_s
             self.counters["ranges_beacon_predicted"] += 1
         c_water = self.sound.at(0.5 * (self.depth.m + fix.depth))
         rng = slant_range(
             rec, c_water, self.sound.modem_mps, fix.turnaround_s, self.filter.ranges_as_reported
         )
-        out.range_m = rng
+        placed = partial(
+            RangeDecision,
+            rec.t,
+            rec.t_ping,
+            rec.beacon,
+            beacon_lat=math.degrees(fix.lat),
+            beacon_lon=math.degrees(fix.lon),
+            beacon_depth=fix.depth,
+            beacon_predicted_s=fix.predicted_s if fix.predicted_s > 0.0 else None,
+            range_m=rng,
+        )
         if not 0.0 < rng <= self.nav.gate.max_range_m:
-            return refuse("range_out_of_bounds")
+            return self._refused(placed(reason="range_out_of_bounds"))
         self._to_net(rec.t, fix, rng)
         if not self.filter.initialised:
-            return refuse("not_initialised")
+            return self._refused(placed(reason="not_initialised"))
         if self.filter.ranges_only_without_gps and self.gps.fresh(rec.t):
-            return refuse("gps_available")
+            return self._refused(placed(reason="gps_available"))
         h = self.surface_altitude
         meas = RangeMeas(
             t=rec.t,
@@ -462,15 +443,22 @@ class Navigator:
                 math.degrees(fix.lon),
                 math.hypot(meas.std_m, fix.position_std_m),
             )
-        if not d.accepted:
+        else:
             self.counters[f"range_{d.reason}"] += 1
-        out.accepted = d.accepted
-        out.residual_m = d.residual_m if math.isfinite(d.residual_m) else None
-        out.gate_m = d.gate_m if math.isfinite(d.gate_m) else None  # None: no gate (vlbl)
-        out.reason = d.reason
-        return to_dict(out)
+        return placed(
+            accepted=d.accepted,
+            residual_m=d.residual_m if math.isfinite(d.residual_m) else None,
+            gate_m=d.gate_m if math.isfinite(d.gate_m) else None,  # None: no gate (vlbl)
+            reason=d.reason,
+        )
 
-    def _to_net(self, t: float, fix: Any, rng: float) -> None:
+    def _refused(self, decision: RangeDecision) -> RangeDecision:
+        """A range that never reached the filter's gate, counted by why."""
+        self.counters[f"range_{decision.reason}"] += 1
+        self.counters["ranges_rejected"] += 1
+        return decision
+
+    def _to_net(self, t: float, fix: BeaconFix, rng: float) -> None:
         """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
         std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m, fix.predicted_std_m)
         h = self.surface_altitude
@@ -490,13 +478,14 @@ class Navigator:
             self.counters["initialised_from_acoustic_fix"] += 1
 
     # -- outputs -----------------------------------------------------------------------
-    def advisory(self, t: float, heading_deg: float | None) -> dict[str, Any]:
+    def advisory(self, t: float, heading_deg: float | None) -> Advisory:
         """How well the recent ranges fix each direction (navd/filter/advisory.py)."""
-        return to_dict(self.observability.assess(t, heading_deg))
+        return self.observability.assess(t, heading_deg)
 
     def input_ages(self, t: float) -> dict[str, float | None]:
         """Seconds since the last heading, RPM and depth (None: never seen)."""
-        ages = {"heading": self._t_heading, "rpm": self._t_rpm, "depth": self.depth.t}
+        i = self.inputs
+        ages = {"heading": i.t_heading, "rpm": i.t_rpm, "depth": self.depth.t}
         return {k: (t - v if math.isfinite(v) else None) for k, v in ages.items()}
 
     def mode(self, t: float) -> str:
@@ -507,61 +496,38 @@ class Navigator:
             return "surface"
         return "surfacing"
 
-    def _estimate_record(self, t: float) -> dict[str, Any] | None:
+    def _estimate_record(self, t: float) -> Estimate | None:
         if not self.filter.initialised:
             return None
-        est = self.filter.estimate()
-        heading, speed = self._speed_heading(t)
-        std_max = math.sqrt(max(0.0, principal_axes(est.var_n, est.var_e, est.cov_ne)[0]))
+        state = self.filter.estimate()
+        std_max = math.sqrt(max(0.0, principal_axes(state.var_n, state.var_e, state.cov_ne)[0]))
         integrity = self.integrity.assess(std_max)
-        r = Estimate(
-            round(t, 9), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.depth.m, self.mode(t), integrity
-        )
-        fill(r, est)
-        if self.integrity.reason:
-            r.integrity_reason = self.integrity.reason
-        c = self.filter.corrections()
-        if c is not None:
-            r.heading_bias_deg = math.degrees(c.heading_bias)
-            r.speed_scale = c.speed_scale
-            r.beacon_offset_n = c.beacon_offset_n
-            r.beacon_offset_e = c.beacon_offset_e
-            r.calibration_doubt = c.calibration_doubt
-            heading += c.heading_bias
-            speed *= c.speed_scale
-        r.heading_deg = math.degrees(geodesy.wrap_lon(heading)) % 360.0
-        r.speed_mps = speed
-        if self.dr.lat is not None and self.dr.lon is not None:
-            r.dr_lat = math.degrees(self.dr.lat)
-            r.dr_lon = math.degrees(self.dr.lon)
-        fx = self.net.fix
-        if fx is not None and self.net.t_fix is not None and t - self.net.t_fix <= _FIX_MAX_AGE_S:
-            r.fix_lat = math.degrees(fx.lat)
-            r.fix_lon = math.degrees(fx.lon)
-            r.fix_std_m = math.sqrt(0.5 * float(fx.cov_ne[0, 0] + fx.cov_ne[1, 1]))
-            r.fix_age_s = t - self.net.t_fix
-        if self._dvl_seen and self.dvl.lat is not None and self.dvl.lon is not None:
-            r.dvl_lat = math.degrees(self.dvl.lat)
-            r.dvl_lon = math.degrees(self.dvl.lon)
-            r.dvl_error_pred_m = self.dvl.pred_error_m
-            r.dvl_time_to_limit_s = self.dvl.time_to_limit_s()
-        stale = []
-        if t - self._t_heading > self.nav.stale_input_s:
-            stale.append("heading")
-        if t - self._t_rpm > self.nav.stale_input_s:
-            stale.append("rpm")
+        heading, speed = self.inputs.heading_speed()
+        stale = self.inputs.stale(t)
         if stale:
-            r.stale = stale
             self.counters["ticks_with_stale_input"] += 1
-        out = to_dict(r)
-        # one sum is NaN or infinite exactly when one of its terms is (all are bounded)
-        if not math.isfinite(sum([v for v in out.values() if type(v) is float])):
+        est = estimate.build(
+            t,
+            state,
+            depth=self.depth.m,
+            mode=self.mode(t),
+            integrity=integrity,
+            integrity_reason=self.integrity.reason,
+            corrections=self.filter.corrections(),
+            heading=heading,
+            speed=speed,
+            dr=self.dr,
+            net=self.net,
+            dvl=self.dvl if self._dvl_seen else None,
+            stale=stale,
+        )
+        if not finite(est):
             # Never publish a NaN: say so and skip the tick.
             self.counters["estimates_not_finite"] += 1
             return None
         if self.smoothing is not None:
-            self.smoothing.tick(r)
-        return out
+            self.smoothing.tick(est)
+        return est
 
 
 _HANDLERS: dict[type, Any] = {

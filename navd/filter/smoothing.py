@@ -11,13 +11,11 @@ from __future__ import annotations
 import tempfile
 from array import array
 from collections.abc import Iterator
-from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
+from navd.filter import estimate
 from navd.filter.common import NavFilter, StateEstimate
-from navd.filter.estimate import fill
 from navd.filter.smoother import rts_backward
 from navd.formats import jsonlines
 from navd.schema import Estimate, from_dict, to_dict
@@ -36,7 +34,7 @@ class _Segment:
         self.steps.append(len(self.filter.history) - 1)
         self.lines.write(jsonlines.dumps_line(to_dict(est)).encode())
 
-    def smoothed(self) -> Iterator[dict[str, Any]]:
+    def smoothed(self) -> Iterator[Estimate]:
         f = self.filter
         n = len(self.steps)
         values = np.empty((n, _FIELDS))
@@ -50,9 +48,8 @@ class _Segment:
                 break  # no tick before this step: the rest of the pass changes nothing
         self.lines.seek(0)
         for line, row in zip(self.lines, values, strict=True):
-            rec = replace(from_dict(Estimate, jsonlines.loads(line)), smoothed=True)
-            fill(rec, StateEstimate(*row.tolist()))
-            yield to_dict(rec)
+            filtered = from_dict(Estimate, jsonlines.loads(line))
+            yield estimate.smoothed(filtered, StateEstimate(*row.tolist()))
 
     def close(self) -> None:
         self.lines.close()
@@ -72,7 +69,7 @@ class Smoothing:
     def tick(self, est: Estimate) -> None:
         self._segments[-1].tick(est)
 
-    def smoothed(self) -> Iterator[dict[str, Any]]:
+    def smoothed(self) -> Iterator[Estimate]:
         """Every tick's estimate re-written by the Rauch-Tung-Striebel smoother."""
         for seg in self._segments:
             yield from seg.smoothed()

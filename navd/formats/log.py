@@ -22,7 +22,7 @@ from typing import Any, TextIO
 from navd.formats import jsonlines
 from navd.formats.mlog import FORMAT, VERSION, record_to_json
 from navd.records import Record
-from navd.schema import LOG_TYPE
+from navd.schema import LOG_TYPE, Published, to_dict
 
 _RETRY_AFTER_S = 10.0
 
@@ -146,12 +146,12 @@ class RecordLog:
             total -= size
             self.removed_files += 1
 
-    def output(self, out: dict[str, Any]) -> None:
+    def output(self, out: Published) -> None:
+        line = to_dict(out)
         # filter outputs are logged under their own names so the log stays a measurement log
-        kind = out.get("type", "output")
-        if kind in LOG_TYPE:
-            out = {**out, "type": LOG_TYPE[kind]}
-        self._write(out)
+        if out.type in LOG_TYPE:
+            line["type"] = LOG_TYPE[out.type]
+        self._write(line)
 
     def flush(self) -> None:
         """Hand buffered lines to the kernel: from here a crash of navd loses nothing."""
