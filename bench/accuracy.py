@@ -21,13 +21,15 @@ from typing import Any
 from bench.common import mode_config, report
 from navd.analysis.score import Score, read_jsonl, score
 from navd.config import load_config
+from navd.formats.outputs import read_outputs
 from navd.hil.bound import mission_bound
 from navd.hil.scenario import list_scenarios, load_scenario
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
+from navd.schema import Output, split_outputs
 
 
-def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
+def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[Output]:
     cfg = mode_config(mission_dir, mode)
     out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
     cmd = [
@@ -44,27 +46,29 @@ def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[dict]:
     if smooth:
         cmd.append("--smooth")
     subprocess.run(cmd, check=True, capture_output=True, text=True)
-    return read_jsonl(out)
+    return read_outputs(out)
 
 
 def dvl_errors(mission_dir: Path, truth: list[dict]) -> tuple[float, float, float]:
     """(distance run, actual DVL dead-reckoning error, predicted error) at surfacing."""
     from navd.analysis.score import _ne_error
 
-    out = read_jsonl(mission_dir / "out-default.jsonl")
+    est, _ = split_outputs(read_outputs(mission_dir / "out-default.jsonl"))
     by_t = {round(s["t"], 3): s for s in truth}
-    sub = [o for o in out if o["type"] == "estimate" and o["mode"] == "submerged"]
+    sub = [o for o in est if o.mode == "submerged"]
     last = sub[-1]
-    tr = by_t[round(last["t"], 3)]
+    tr = by_t[round(last.t, 3)]
     dist = 0.0
     prev = None
     for o in sub:
-        s = by_t.get(round(o["t"], 3))
+        s = by_t.get(round(o.t, 3))
         if s is not None and prev is not None:
             dist += math.hypot(*_ne_error(s["lat"], s["lon"], prev["lat"], prev["lon"]))
         prev = s
-    err = math.hypot(*_ne_error(last["dvl_lat"], last["dvl_lon"], tr["lat"], tr["lon"]))
-    return dist, err, last["dvl_error_pred_m"]
+    if last.dvl_lat is None or last.dvl_lon is None or last.dvl_error_pred_m is None:
+        return dist, math.nan, math.nan
+    err = math.hypot(*_ne_error(last.dvl_lat, last.dvl_lon, tr["lat"], tr["lon"]))
+    return dist, err, last.dvl_error_pred_m
 
 
 def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[Any]]:

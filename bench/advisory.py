@@ -34,10 +34,11 @@ from typing import Any
 from bench.common import mode_config, report
 from navd.analysis.score import read_jsonl, score
 from navd.filter.advisory import replayed
+from navd.formats.outputs import read_outputs
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
-from navd.schema import outputs_of
+from navd.schema import Output, split_outputs
 
 SURFACE_BEFORE_S = 60.0
 RUN_BEFORE_ADVICE_S = 120.0  # the plan is followed this long before the advice is taken
@@ -92,21 +93,21 @@ def draw(seed: int, crossing: bool = False) -> dict[str, Any]:
     }
 
 
-def _fly(sc: dict[str, Any], seed: int, d: Path) -> tuple[list[dict], list[dict]]:
+def _fly(sc: dict[str, Any], seed: int, d: Path) -> tuple[list[Output], list[dict]]:
     write_mission(simulate(scenario_from_dict(sc), seed), d)
     out = d / "out.jsonl"
     cmd = [sys.executable, "-m", "navd.cli", "replay", str(d / "measurements.jsonl")]
     cmd += ["--config", str(mode_config(d, "default")), "--out", str(out)]
     subprocess.run(cmd, capture_output=True, check=True)
-    return read_jsonl(out), read_jsonl(d / "truth.jsonl")
+    return read_outputs(out), read_jsonl(d / "truth.jsonl")
 
 
-def _fire(outputs: list[dict]) -> tuple[float, float] | None:
+def _fire(outputs: list[Output]) -> tuple[float, float] | None:
     """When the advisory first said weak_cross_range while submerged, at least
     ``RUN_BEFORE_ADVICE_S`` into the run (before that, the ranges taken at the surface
     from one spot are weak whatever the plan), and the heading it suggested."""
-    est, dec = outputs_of(outputs)
-    submerged = {round(e["t"], 3) for e in est if e["mode"] == "submerged"}
+    est, dec = split_outputs(outputs)
+    submerged = {round(e.t, 3) for e in est if e.mode == "submerged"}
     for a in replayed(est, dec, RANGE_STD_M):
         if (
             a.verdict == "weak_cross_range"
@@ -140,11 +141,11 @@ def run_one(seed: int, workdir: str) -> dict[str, Any]:
         row["t_fire"] = t_fire
         row["followed_rms"], row["followed_final"] = s1.rms_m, s1.surfacing_m
     crossing, truth_c = _fly(draw(seed, crossing=True), seed, Path(workdir) / f"cross-{seed}")
-    est_c, dec_c = outputs_of(crossing)
-    sub_c = {round(e["t"], 3) for e in est_c if e["mode"] == "submerged"}
+    est_c, dec_c = split_outputs(crossing)
+    sub_c = {round(e.t, 3) for e in est_c if e.mode == "submerged"}
     adv_c = [a for a in replayed(est_c, dec_c, RANGE_STD_M) if round(a.t, 3) in sub_c]
-    near = [d for d in dec_c if d.get("accepted") and "range_m" in d]
-    t_abeam = min(near, key=lambda d: d["range_m"])["t"] if near else math.inf
+    near = [(d.range_m, d.t) for d in dec_c if d.accepted and d.range_m is not None]
+    t_abeam = min(near)[1] if near else math.inf
     # the three minutes after passing abeam, when the bearings have swept round
     late = [a for a in adv_c if t_abeam + 60.0 <= a.t <= t_abeam + 180.0]
     row["crossing_weak_share"] = (

@@ -30,6 +30,7 @@ from bench.common import report
 from navd.analysis.score import read_jsonl, score
 from navd.config import deep_merge
 from navd.filter.compass import deviation_deg
+from navd.formats.outputs import read_outputs
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -119,7 +120,7 @@ def run_one(seed: int, workdir: str) -> dict[str, Any]:
         r = _navd("replay", str(log), "--config", str(cfg), "--out", str(o))
         if r.returncode != 0:
             return {"seed": seed, "error": r.stderr.strip().splitlines()[-1]}
-        out[step] = score(read_jsonl(o), truth)
+        out[step] = score(read_outputs(o), truth)
     out["deviation"] = yaml.safe_load((d / "compass.yaml").read_text())["navigation"][
         "compass_deviation_deg"
     ]

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
-from typing import Any
 
 import yaml
 
 from navd.analysis.replay import replay
-from navd.analysis.score import read_jsonl
 from navd.config import deep_merge, load_config
+from navd.formats.outputs import read_outputs
+from navd.schema import Output
 
 
 def mode_config(mission_dir: Path, mode: str) -> Path:
@@ -24,7 +24,7 @@ def mode_config(mission_dir: Path, mode: str) -> Path:
 
 def replay_mission(
     mission_dir: Path, mode: str, smooth: bool = False
-) -> tuple[list[dict[str, Any]], str]:
+) -> tuple[list[Output], str]:
     """What ``navd replay MISSION/measurements.jsonl --config <mode's>`` writes, and the
     error it would end with ("" when none), run in this process: a worker that replays
     hundreds of missions starts Python and imports navd once."""
@@ -34,7 +34,7 @@ def replay_mission(
         replay(mission_dir / "measurements.jsonl", cfg, out, smooth=smooth, err=io.StringIO())
     except Exception as exc:  # a mission that makes navd raise is a result, not a crash
         return [], f"{exc.__class__.__name__}: {exc}"
-    return read_jsonl(out), ""
+    return read_outputs(out), ""
 
 
 def write_section(path: Path, name: str, heading: str, body: str) -> None:

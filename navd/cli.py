@@ -134,7 +134,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         print(f"{args.mcap}: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
     print(
         f"{len(mission.estimates)} estimates, {len(mission.decisions)} range decisions, "
-        f"{len(mission.fixes)} GPS fixes, {len(mission.surfacings())} surfacings"
+        f"{len(mission.fixes)} GPS fixes, {len(mission.surfacings)} surfacings"
     )
     return 0
 

@@ -22,7 +22,7 @@ from navd.client import open_session
 from navd.formats import jsonlines
 from navd.formats.foxglove_mcap import location_fix
 from navd.formats.jsonschema import schema_of
-from navd.schema import Advisory, Health, RangeDecision
+from navd.schema import Advisory, Estimate, Health, RangeDecision, output_of
 from navd.zenohconf import read_zenoh_file
 
 DEFAULT_PORT = 8765
@@ -95,7 +95,10 @@ class Bridge:
         now_ns = time.time_ns()
         try:
             if kind == "estimate":
-                msg = location_fix(body["lat"], body["lon"], body["depth"], body, now_ns)
+                est = output_of(body)
+                if not isinstance(est, Estimate):
+                    return  # not navd's schema: another publisher under auv/*
+                msg = location_fix(est.lat, est.lon, est.depth, est, now_ns)
                 self._channel(topic, kind).log(msg, log_time=now_ns)
             else:
                 self._channel(topic, kind).log(body, log_time=now_ns)

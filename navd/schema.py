@@ -13,7 +13,8 @@ ranges too: there a range decision is written as ``decision`` (:data:`LOG_TYPE`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from collections.abc import Iterable
+from dataclasses import MISSING, dataclass, field, fields
 from operator import attrgetter
 from typing import Any, TypeVar
 
@@ -230,22 +231,64 @@ def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) ->
     return out
 
 
-def outputs_of(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """The estimates and range decisions among rows of a replay output or a daemon log.
+def split_outputs(outputs: Iterable[Output]) -> tuple[list[Estimate], list[RangeDecision]]:
+    """The estimates and the range decisions of a run, each in time order."""
+    est: list[Estimate] = []
+    dec: list[RangeDecision] = []
+    for o in outputs:
+        if isinstance(o, Estimate):
+            est.append(o)
+        else:
+            dec.append(o)
+    return est, dec
+
+
+def output_of(row: dict[str, Any]) -> Output | str | None:
+    """A row of a replay output or a daemon log as an estimate or a range decision;
+    None for any other row (a measurement, health, an advisory), or what is wrong with it.
 
     A decision is a ``range`` with ``accepted`` (a measured range never has it), or a
     daemon log's ``decision``.
     """
-    est, dec = [], []
-    for r in rows:
-        kind = r.get("type")
-        if kind == "estimate":
-            est.append(r)
-        elif kind == "range" and "accepted" in r:
-            dec.append(r)
-        elif kind in FROM_LOG_TYPE and FROM_LOG_TYPE[kind] == "range":
-            dec.append({**r, "type": "range"})
-    return est, dec
+    kind = row.get("type")
+    if kind == "estimate":
+        cls: type[Estimate] | type[RangeDecision] = Estimate
+    elif (kind == "range" and "accepted" in row) or FROM_LOG_TYPE.get(str(kind)) == "range":
+        cls = RangeDecision
+    else:
+        return None
+    for name, kinds in _NUMBERS[cls].items():
+        v = row.get(name)
+        if v is None and name in _REQUIRED[cls]:
+            return f"a {kind} without {name}"
+        if v is not None and (type(v) is bool or not isinstance(v, kinds)):
+            return f"a {kind} whose {name} is not a number"
+    try:
+        if cls is RangeDecision:
+            return from_dict(RangeDecision, {**row, "type": "range"})
+        return from_dict(Estimate, row)
+    except TypeError:
+        missing = sorted(_REQUIRED[cls] - row.keys())
+        return f"a {kind} without {', '.join(missing) or 'its fields'}"
+
+
+def _numbers(cls: type) -> dict[str, tuple[type, ...]]:
+    """The fields of ``cls`` that hold a number (an int is one where a float is asked)."""
+    out: dict[str, tuple[type, ...]] = {}
+    for f in fields(cls):
+        ann = str(f.type).replace(" ", "")
+        if ann in ("float", "float|None"):
+            out[f.name] = (int, float)
+        elif ann in ("int", "int|None"):
+            out[f.name] = (int,)
+    return out
+
+
+_NUMBERS = {cls: _numbers(cls) for cls in (Estimate, RangeDecision)}
+_REQUIRED = {
+    cls: frozenset(f.name for f in fields(cls) if f.default is MISSING)
+    for cls in (Estimate, RangeDecision)
+}
 
 
 T = TypeVar("T", Estimate, RangeDecision, Advisory)

@@ -17,8 +17,9 @@ from navd.analysis.surfacing import surfacing_error_gps
 from navd.filter.advisory import replayed
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
+from navd.formats.outputs import read_outputs
 from navd.records import Gps
-from navd.schema import outputs_of
+from navd.schema import split_outputs
 
 
 def _read(path: str | Path) -> list[dict[str, Any]]:
@@ -79,12 +80,12 @@ def make_report(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    est, rng = outputs_of(_read(output))
+    est, rng = split_outputs(read_outputs(output))
     if not est:
         raise LogError(f"{output}: no estimates to report (not a replay output or daemon log?)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    grid = _Grid(est[0]["lat"], est[0]["lon"])
+    grid = _Grid(est[0].lat, est[0].lon)
     fixes: list[Gps] = []
     if measurements:
         fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
@@ -92,17 +93,17 @@ def make_report(
 
     # -- track ---------------------------------------------------------------------
     fig, ax = plt.subplots(figsize=(8, 8))
-    e, n = zip(*(grid.en(r["lat"], r["lon"]) for r in est), strict=True)
+    e, n = zip(*(grid.en(r.lat, r.lon) for r in est), strict=True)
     if tru:
         te, tn = zip(*(grid.en(s["lat"], s["lon"]) for s in tru[::10]), strict=True)
         ax.plot(te, tn, "k--", lw=1, label="truth")
-    dr = [r for r in est if "dr_lat" in r]
+    dr = [(r.dr_lat, r.dr_lon) for r in est if r.dr_lat is not None and r.dr_lon is not None]
     if dr:
-        de, dn = zip(*(grid.en(r["dr_lat"], r["dr_lon"]) for r in dr), strict=True)
+        de, dn = zip(*(grid.en(lat, lon) for lat, lon in dr), strict=True)
         ax.plot(de, dn, color="magenta", lw=1, label="dead reckoning")
     ax.plot(e, n, color="green", lw=1.5, label="estimate")
-    acc_t = {round(r["t"], 1) for r in rng if r["accepted"]}
-    acc = [grid.en(r["lat"], r["lon"]) for r in est if round(r["t"], 1) in acc_t]
+    acc_t = {round(r.t, 1) for r in rng if r.accepted}
+    acc = [grid.en(r.lat, r.lon) for r in est if round(r.t, 1) in acc_t]
     if acc:
         ax.plot(*zip(*acc, strict=True), "gx", ms=6, label="range accepted")
     if fixes:
@@ -111,7 +112,11 @@ def make_report(
             strict=True,
         )
         ax.plot(ge, gn, "r.", ms=3, label="GPS fixes")
-    bea = [grid.en(r["beacon_lat"], r["beacon_lon"]) for r in rng if "beacon_lat" in r]
+    bea = [
+        grid.en(r.beacon_lat, r.beacon_lon)
+        for r in rng
+        if r.beacon_lat is not None and r.beacon_lon is not None
+    ]
     if bea:
         ax.plot(*zip(*bea, strict=True), "c^", ms=4, label="beacon (as reported)")
     ax.plot(e[0], n[0], "wD", mec="k", ms=8, label="start")
@@ -129,18 +134,18 @@ def make_report(
     # -- ranges ----------------------------------------------------------------------
     # Time as minutes of the mission: a daemon's log counts its monotonic clock, which
     # means nothing to a reader; its estimates carry UTC, which names the start.
-    t0 = est[0]["t"]
-    start = est[0].get("t_utc")
+    t0 = est[0].t
+    start = est[0].t_utc
     t_label = f"minutes since {start}" if start else f"minutes since t = {t0:.0f} s"
 
     def minutes(t: float) -> float:
         return (t - t0) / 60.0
 
     fig, ax = plt.subplots(figsize=(9, 4))
-    a = [(minutes(r["t"]), r["range_m"]) for r in rng if r["accepted"] and "range_m" in r]
-    rj = [(minutes(r["t"]), r["range_m"]) for r in rng if not r["accepted"] and "range_m" in r]
+    a = [(minutes(r.t), r.range_m) for r in rng if r.accepted and r.range_m is not None]
+    rj = [(minutes(r.t), r.range_m) for r in rng if not r.accepted and r.range_m is not None]
     # refused before a range was computed (no beacon position, say): counted, not plotted
-    unplotted = sum(1 for r in rng if not r["accepted"] and "range_m" not in r)
+    unplotted = sum(1 for r in rng if not r.accepted and r.range_m is None)
     if a:
         ax.plot(*zip(*a, strict=True), "bx", label=f"accepted ({len(a)})")
     if rj or unplotted:
@@ -157,10 +162,10 @@ def make_report(
     plt.close(fig)
 
     # -- current and uncertainty ---------------------------------------------------
-    t = [minutes(r["t"]) for r in est]
+    t = [minutes(r.t) for r in est]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax1.plot(t, [r["current_n"] for r in est], label="north")
-    ax1.plot(t, [r["current_e"] for r in est], label="east")
+    ax1.plot(t, [r.current_n for r in est], label="north")
+    ax1.plot(t, [r.current_e for r in est], label="east")
     if tru:
         tt = [minutes(s["t"]) for s in tru]
         ax1.plot(tt, [s["current_n"] for s in tru], "C0--", lw=0.8)
@@ -168,16 +173,16 @@ def make_report(
     ax1.set_ylabel("current (m/s)")
     ax1.legend(fontsize=8)
     ax1.grid(True, alpha=0.3)
-    ax2.plot(t, [r["std_n"] for r in est], label="1-sigma north")
-    ax2.plot(t, [r["std_e"] for r in est], label="1-sigma east")
+    ax2.plot(t, [r.std_n for r in est], label="1-sigma north")
+    ax2.plot(t, [r.std_e for r in est], label="1-sigma east")
     if tru:
         truth_at = TruthAt(tru)
         err = []
         for r in est:
-            s = truth_at(r["t"])
+            s = truth_at(r.t)
             if s is not None:
                 g = _Grid(s["lat"], s["lon"])
-                err.append((minutes(r["t"]), math.hypot(*g.en(r["lat"], r["lon"]))))
+                err.append((minutes(r.t), math.hypot(*g.en(r.lat, r.lon))))
         if err:
             ax2.plot(*zip(*err, strict=True), "k", lw=0.8, label="error vs truth")
     ax2.set_xlabel(t_label)
@@ -190,14 +195,14 @@ def make_report(
 
     # -- summary -------------------------------------------------------------------
     lines = [
-        f"estimates: {len(est)} over {est[-1]['t'] - est[0]['t']:.0f} s",
-        f"ranges: {len(rng)} reached the filter, {sum(r['accepted'] for r in rng)} accepted, "
-        f"{sum(not r['accepted'] for r in rng)} rejected",
+        f"estimates: {len(est)} over {est[-1].t - est[0].t:.0f} s",
+        f"ranges: {len(rng)} reached the filter, {sum(r.accepted for r in rng)} accepted, "
+        f"{sum(not r.accepted for r in rng)} rejected",
     ]
     reasons: dict[str, int] = {}
-    for r in rng:
-        if not r["accepted"]:
-            reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
+    for d in rng:
+        if not d.accepted:
+            reasons[d.reason] = reasons.get(d.reason, 0) + 1
     if reasons:
         lines.append(
             "rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
@@ -207,7 +212,7 @@ def make_report(
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
-    sub = {round(e["t"], 3) for e in est if e["mode"] == "submerged"}
+    sub = {round(e.t, 3) for e in est if e.mode == "submerged"}
     advice = [a for a in replayed(est, rng, RANGE_STD_M) if round(a.t, 3) in sub]
     if advice:
         weak = [a for a in advice if a.verdict == "weak_cross_range"]
@@ -232,8 +237,8 @@ def make_report(
         )
     last = est[-1]
     lines.append(
-        f"final estimate: {last['lat']:.7f}, {last['lon']:.7f}; current "
-        f"{last['current_n']:+.3f} N {last['current_e']:+.3f} E m/s"
+        f"final estimate: {last.lat:.7f}, {last.lon:.7f}; current "
+        f"{last.current_n:+.3f} N {last.current_e:+.3f} E m/s"
     )
     lines.append(
         f"figures: {out / 'track.png'}, {out / 'ranges.png'}, {out / 'current_uncertainty.png'}"

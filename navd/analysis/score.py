@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ import numpy as np
 from geographiclib.geodesic import Geodesic
 
 from navd.formats import jsonlines
+from navd.schema import Output, RangeDecision, split_outputs
 
 _GEOD = Geodesic.WGS84
 CHI2_2DOF_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
@@ -50,19 +52,19 @@ class Score:
     ok_fraction: float = math.nan
 
 
-def replies_to_reacquire(ranges: list[dict[str, Any]]) -> list[int]:
+def replies_to_reacquire(ranges: list[RangeDecision]) -> list[int]:
     """Per re-acquisition: replies from the start of its rejection streak to the next accept."""
     out: list[int] = []
     start: int | None = None  # first gate rejection since the last accepted range
     reacquired = False
     for i, r in enumerate(ranges):
-        if r["accepted"]:
+        if r.accepted:
             if reacquired and start is not None:
                 out.append(i - start + 1)
             start, reacquired = None, False
-        elif str(r.get("reason", "")).startswith("gate"):
+        elif r.reason.startswith("gate"):
             start = i if start is None else start
-            reacquired = reacquired or r["reason"] == "gate_reacquire"
+            reacquired = reacquired or r.reason == "gate_reacquire"
     return out
 
 
@@ -137,37 +139,32 @@ class TruthAt:
         return {"t": t, **{k: a[k] + w * (b[k] - a[k]) for k in _INTERPOLATED}}
 
 
-def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
+def score(outputs: Iterable[Output], truth: list[dict[str, Any]]) -> Score:
+    """A mission's outputs against the simulator's truth samples (truth.jsonl)."""
     truth_at = TruthAt(truth)
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
     ok_inside: list[bool] = []
     last_sub: tuple[float, float] | None = None
-    for o in outputs:
-        if o.get("type") != "estimate":
-            continue
-        tr = truth_at(o["t"])
+    estimates, ranges = split_outputs(outputs)
+    for o in estimates:
+        tr = truth_at(o.t)
         if tr is None or tr["depth"] < _SUBMERGED_DEPTH_M:
             continue
-        dn, de = _ne_error(o["lat"], o["lon"], tr["lat"], tr["lon"])
+        dn, de = _ne_error(o.lat, o.lon, tr["lat"], tr["lon"])
         e = math.hypot(dn, de)
         errs.append(e)
-        d2 = _mahalanobis2(dn, de, o["std_n"] ** 2, o["std_e"] ** 2, o["cov_ne"])
+        d2 = _mahalanobis2(dn, de, o.std_n**2, o.std_e**2, o.cov_ne)
         inside.append(d2 <= CHI2_2DOF_95)
-        if o.get("integrity", "ok") == "ok":
+        if o.integrity == "ok":
             ok_inside.append(d2 <= CHI2_2DOF_99)
-        cur_errs.append(
-            math.hypot(o["current_n"] - tr["current_n"], o["current_e"] - tr["current_e"])
-        )
+        cur_errs.append(math.hypot(o.current_n - tr["current_n"], o.current_e - tr["current_e"]))
         dre = None
-        if "dr_lat" in o:
-            dre = math.hypot(*_ne_error(o["dr_lat"], o["dr_lon"], tr["lat"], tr["lon"]))
+        if o.dr_lat is not None and o.dr_lon is not None:
+            dre = math.hypot(*_ne_error(o.dr_lat, o.dr_lon, tr["lat"], tr["lon"]))
             dr_errs.append(dre)
-        if "fix_lat" in o:
-            fix_errs.append(
-                math.hypot(*_ne_error(o["fix_lat"], o["fix_lon"], tr["lat"], tr["lon"]))
-            )
+        if o.fix_lat is not None and o.fix_lon is not None:
+            fix_errs.append(math.hypot(*_ne_error(o.fix_lat, o.fix_lon, tr["lat"], tr["lon"])))
         last_sub = (e, dre if dre is not None else math.nan)
-    ranges = [o for o in outputs if o.get("type") == "range"]
     reacq = replies_to_reacquire(ranges)
     if not errs:
         nan = math.nan
@@ -181,9 +178,9 @@ def score(outputs: list[dict[str, Any]], truth: list[dict[str, Any]]) -> Score:
         current_rms_mps=float(np.sqrt(np.mean(np.array(cur_errs) ** 2))),
         dr_rms_m=float(np.sqrt(np.mean(np.array(dr_errs) ** 2))) if dr_errs else math.nan,
         dr_surfacing_m=last_sub[1] if last_sub else math.nan,
-        accepted=sum(1 for r in ranges if r["accepted"]),
-        rejected=sum(1 for r in ranges if not r["accepted"]),
-        reacquisitions=sum(1 for r in ranges if r.get("reason") == "gate_reacquire"),
+        accepted=sum(1 for r in ranges if r.accepted),
+        rejected=sum(1 for r in ranges if not r.accepted),
+        reacquisitions=sum(1 for r in ranges if r.reason == "gate_reacquire"),
         fix_rms_m=float(np.sqrt(np.mean(np.array(fix_errs) ** 2))) if fix_errs else math.nan,
         fix_coverage=len(fix_errs) / len(errs),
         reacquire_replies_max=float(max(reacq)) if reacq else math.nan,

@@ -7,6 +7,7 @@ post-mission exports need nothing beyond navd's dependencies.
 from __future__ import annotations
 
 import math
+
 from navd import geodesy
 from navd.formats.mission import Surfacing
 from navd.records import Gps

@@ -20,7 +20,7 @@ from dataclasses import replace
 
 from navd import geodesy
 from navd.filter.common import principal_axes
-from navd.schema import Advisory
+from navd.schema import Advisory, Estimate, RangeDecision
 
 WINDOW_S = 300.0  # the last five minutes of ranges
 WEAK_RATIO = 0.1  # smallest / largest information: tan² of a ±18° bearing spread
@@ -94,21 +94,28 @@ class Observability:
 
 
 def replayed(
-    estimates: list[dict], decisions: list[dict], range_std_m: float, every_s: float = 1.0
+    estimates: list[Estimate],
+    decisions: list[RangeDecision],
+    range_std_m: float,
+    every_s: float = 1.0,
 ) -> list[Advisory]:
     """The advisories a daemon would have published, from a mission's outputs (the
     accepted ranges placed at the estimate of their time), one every ``every_s``."""
     obs = Observability()
-    accepted = [d for d in decisions if d.get("accepted") and "beacon_lat" in d]
+    accepted = [
+        (d.t, d.beacon_lat, d.beacon_lon)
+        for d in decisions
+        if d.accepted and d.beacon_lat is not None and d.beacon_lon is not None
+    ]
     out: list[Advisory] = []
     i = 0
     t_next = -math.inf
     for e in estimates:
-        while i < len(accepted) and accepted[i]["t"] <= e["t"]:
-            d = accepted[i]
-            obs.add(d["t"], e["lat"], e["lon"], d["beacon_lat"], d["beacon_lon"], range_std_m)
+        while i < len(accepted) and accepted[i][0] <= e.t:
+            t, lat, lon = accepted[i]
+            obs.add(t, e.lat, e.lon, lat, lon, range_std_m)
             i += 1
-        if e["t"] >= t_next:
-            out.append(obs.assess(e["t"], e.get("heading_deg")))
-            t_next = e["t"] + every_s
+        if e.t >= t_next:
+            out.append(obs.assess(e.t, e.heading_deg))
+            t_next = e.t + every_s
     return out

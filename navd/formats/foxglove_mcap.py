@@ -16,27 +16,25 @@ that exporting never mixes with a live server's channels.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from navd.formats.jsonschema import schema_of
+from navd.formats.mission import Mission
 from navd.formats.mlog import TYPE_NAMES, record_to_json
-from navd.schema import Health, RangeDecision
-
-if TYPE_CHECKING:
-    from navd.analysis.export import Mission
+from navd.schema import Estimate, Health, RangeDecision, to_dict
 
 
 def _ns(m: Mission, t: float) -> int:
     return int(round((m.epoch_s + t) * 1e9))
 
 
-def location_fix(lat: float, lon: float, depth: float, e: dict[str, Any] | None, t_ns: int):
+def location_fix(lat: float, lon: float, depth: float, e: Estimate | None, t_ns: int) -> Any:
     """A ``foxglove.LocationFix``; with the estimate's covariance (ENU, metres²) when given."""
     from foxglove.messages import LocationFix, LocationFixPositionCovarianceType, Timestamp
 
     kw: dict[str, Any] = {}
-    if e is not None and "std_n" in e:
-        vn, ve, c = e["std_n"] ** 2, e["std_e"] ** 2, e.get("cov_ne", 0.0)
+    if e is not None:
+        vn, ve, c = e.std_n**2, e.std_e**2, e.cov_ne
         kw["position_covariance"] = [ve, c, 0.0, c, vn, 0.0, 0.0, 0.0, 0.01]
         kw["position_covariance_type"] = LocationFixPositionCovarianceType.Known
     return LocationFix(
@@ -54,18 +52,18 @@ def _events(m: Mission) -> list[tuple[float, str, str]]:
     out = []
     mode = integrity = None
     for e in m.estimates:
-        if e["mode"] != mode:
-            out.append((e["t"], "info", f"mode {e['mode']}"))
-            mode = e["mode"]
-        if e["integrity"] != integrity:
-            level = {"ok": "info", "degraded": "warning"}.get(e["integrity"], "error")
-            why = f": {e['integrity_reason']}" if e.get("integrity_reason") else ""
-            out.append((e["t"], level, f"integrity {e['integrity']}{why}"))
-            integrity = e["integrity"]
+        if e.mode != mode:
+            out.append((e.t, "info", f"mode {e.mode}"))
+            mode = e.mode
+        if e.integrity != integrity:
+            level = {"ok": "info", "degraded": "warning"}.get(e.integrity, "error")
+            why = f": {e.integrity_reason}" if e.integrity_reason else ""
+            out.append((e.t, level, f"integrity {e.integrity}{why}"))
+            integrity = e.integrity
     for d in m.decisions:
-        if d.get("reason") == "gate_reacquire":
-            out.append((d["t"], "warning", "re-acquired: the recent ranges agreed on a correction"))
-    for s in m.surfacings():
+        if d.reason == "gate_reacquire":
+            out.append((d.t, "warning", "re-acquired: the recent ranges agreed on a correction"))
+    for s in m.surfacings:
         out.append((s.t, "info", f"surfaced: {s.error_m:.1f} m from the first GPS fix"))
     return sorted(out, key=lambda x: x[0])
 
@@ -82,7 +80,9 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
     try:
         fix_channels: dict[str, Any] = {}
 
-        def fix(topic: str, t: float, lat: float, lon: float, depth: float, e: Any = None):
+        def fix(
+            topic: str, t: float, lat: float, lon: float, depth: float, e: Estimate | None = None
+        ) -> None:
             ch = fix_channels.get(topic)
             if ch is None:
                 ch = fix_channels[topic] = LocationFixChannel(topic, context=ctx)
@@ -91,17 +91,17 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
             counts[topic] = counts.get(topic, 0) + 1
 
         for e in m.estimates:
-            fix("/nav/estimate", e["t"], e["lat"], e["lon"], e["depth"], e)
-            if "dr_lat" in e:
-                fix("/nav/dead_reckoning", e["t"], e["dr_lat"], e["dr_lon"], e["depth"])
+            fix("/nav/estimate", e.t, e.lat, e.lon, e.depth, e)
+            if e.dr_lat is not None and e.dr_lon is not None:
+                fix("/nav/dead_reckoning", e.t, e.dr_lat, e.dr_lon, e.depth)
         for e in m.smoothed:
-            fix("/nav/smoothed", e["t"], e["lat"], e["lon"], e["depth"], e)
+            fix("/nav/smoothed", e.t, e.lat, e.lon, e.depth, e)
         for g in m.fixes:
             if g.lat is not None and g.lon is not None:
                 fix("/nav/gps", g.t, g.lat, g.lon, 0.0)
         for d in m.decisions:
-            if "beacon_lat" in d:
-                fix("/nav/beacon", d["t"], d["beacon_lat"], d["beacon_lon"], d["beacon_depth"])
+            if d.beacon_lat is not None and d.beacon_lon is not None:
+                fix("/nav/beacon", d.t, d.beacon_lat, d.beacon_lon, d.beacon_depth or 0.0)
 
         json_channels: dict[str, Any] = {}
 
@@ -116,7 +116,7 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
             counts[topic] = counts.get(topic, 0) + 1
 
         for d in m.decisions:
-            as_json("/nav/range", d["t"], d, RangeDecision)
+            as_json("/nav/range", d.t, to_dict(d), RangeDecision)
         for h in m.health:
             as_json("/nav/health", h["t"], h, Health)
         for rec in m.records:

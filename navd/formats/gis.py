@@ -18,13 +18,11 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
 
 from navd import geodesy
 from navd.filter.common import principal_axes
-
-if TYPE_CHECKING:
-    from navd.analysis.export import Mission
+from navd.formats.mission import Mission
+from navd.schema import Estimate, to_dict
 
 GPX_NS = "http://www.topografix.com/GPX/1/1"
 KML_NS = "http://www.opengis.net/kml/2.2"
@@ -38,19 +36,23 @@ def _iso(m: Mission, t: float) -> str:
 
 def _tracks(m: Mission) -> list[tuple[str, list[tuple[float, float, float, float]]]]:
     """(name, [(t, lat, lon, depth)]) for every track the mission has."""
-    out = [("estimate", [(e["t"], e["lat"], e["lon"], e["depth"]) for e in m.estimates])]
+    out = [("estimate", [(e.t, e.lat, e.lon, e.depth) for e in m.estimates])]
     if m.smoothed:
-        out.append(("smoothed", [(e["t"], e["lat"], e["lon"], e["depth"]) for e in m.smoothed]))
-    dr = [(e["t"], e["dr_lat"], e["dr_lon"], e["depth"]) for e in m.estimates if "dr_lat" in e]
+        out.append(("smoothed", [(e.t, e.lat, e.lon, e.depth) for e in m.smoothed]))
+    dr = [
+        (e.t, e.dr_lat, e.dr_lon, e.depth)
+        for e in m.estimates
+        if e.dr_lat is not None and e.dr_lon is not None
+    ]
     if dr:
         out.append(("dead reckoning", dr))
     gps = [(f.t, f.lat, f.lon, 0.0) for f in m.fixes if f.lat is not None and f.lon is not None]
     if gps:
-        out.append(("GPS fixes", gps))  # type: ignore[arg-type]
+        out.append(("GPS fixes", gps))
     beacon = [
-        (d["t"], d["beacon_lat"], d["beacon_lon"], d.get("beacon_depth", 0.0))
+        (d.t, d.beacon_lat, d.beacon_lon, d.beacon_depth or 0.0)
         for d in m.decisions
-        if "beacon_lat" in d
+        if d.beacon_lat is not None and d.beacon_lon is not None
     ]
     if beacon:
         out.append(("beacon", beacon))
@@ -99,8 +101,8 @@ def write_gpx(m: Mission, path: str | Path) -> None:
     meta = ET.SubElement(gpx, f"{q}metadata")
     ET.SubElement(meta, f"{q}name").text = "navd mission"
     if m.estimates:
-        ET.SubElement(meta, f"{q}time").text = _iso(m, m.estimates[0]["t"])
-    for i, s in enumerate(m.surfacings(), 1):
+        ET.SubElement(meta, f"{q}time").text = _iso(m, m.estimates[0].t)
+    for i, s in enumerate(m.surfacings, 1):
         w = ET.SubElement(gpx, f"{q}wpt", {"lat": f"{s.lat:.8f}", "lon": f"{s.lon:.8f}"})
         ET.SubElement(w, f"{q}time").text = _iso(m, s.t)
         ET.SubElement(w, f"{q}name").text = f"surfacing {i}"
@@ -119,14 +121,14 @@ def write_gpx(m: Mission, path: str | Path) -> None:
     ET.ElementTree(gpx).write(path, encoding="UTF-8", xml_declaration=True)
 
 
-def ellipse95(e: dict[str, Any]) -> list[tuple[float, float]]:
+def ellipse95(e: Estimate) -> list[tuple[float, float]]:
     """The 95 % position ellipse of an estimate, as (lat, lon) degrees around it."""
-    vn, ve, c = e["std_n"] ** 2, e["std_e"] ** 2, e.get("cov_ne", 0.0)
+    vn, ve, c = e.std_n**2, e.std_e**2, e.cov_ne
     # eigen-decomposition of [[vn, c], [c, ve]]
     l1, l2, theta = principal_axes(vn, ve, c)  # theta: the major axis, from north
     l1, l2 = max(l1, 0.0), max(l2, 0.0)
     a, b = math.sqrt(CHI2_2DOF_95 * l1), math.sqrt(CHI2_2DOF_95 * l2)
-    lat0, lon0 = math.radians(e["lat"]), math.radians(e["lon"])
+    lat0, lon0 = math.radians(e.lat), math.radians(e.lon)
     pts = []
     for k in range(ELLIPSE_POINTS + 1):
         u = 2.0 * math.pi * k / ELLIPSE_POINTS
@@ -167,7 +169,7 @@ def write_kml(m: Mission, path: str | Path, ellipse_every_s: float = 60.0) -> No
                 continue
             line = ET.SubElement(pm, f"{q}LineString")
             ET.SubElement(line, f"{q}coordinates").text = _coords((p[1], p[2]) for p in part)
-    for i, s in enumerate(m.surfacings(), 1):
+    for i, s in enumerate(m.surfacings, 1):
         pm = ET.SubElement(doc, f"{q}Placemark")
         ET.SubElement(pm, f"{q}name").text = f"surfacing {i}: {s.error_m:.1f} m"
         ET.SubElement(pm, f"{q}description").text = (
@@ -180,13 +182,13 @@ def write_kml(m: Mission, path: str | Path, ellipse_every_s: float = 60.0) -> No
     ET.SubElement(ellipses, f"{q}name").text = "95 % ellipses"
     t_next = -math.inf
     for e in m.estimates:
-        if e["t"] < t_next:
+        if e.t < t_next:
             continue
-        t_next = e["t"] + ellipse_every_s
+        t_next = e.t + ellipse_every_s
         pm = ET.SubElement(ellipses, f"{q}Placemark")
-        ET.SubElement(pm, f"{q}name").text = _iso(m, e["t"])
+        ET.SubElement(pm, f"{q}name").text = _iso(m, e.t)
         when = ET.SubElement(ET.SubElement(pm, f"{q}TimeStamp"), f"{q}when")
-        when.text = _iso(m, e["t"])
+        when.text = _iso(m, e.t)
         poly = ET.SubElement(ET.SubElement(pm, f"{q}Polygon"), f"{q}outerBoundaryIs")
         ring = ET.SubElement(poly, f"{q}LinearRing")
         ET.SubElement(ring, f"{q}coordinates").text = _coords(ellipse95(e))
@@ -200,12 +202,12 @@ CSV_FIELDS = (
 
 
 def write_csv(m: Mission, path: str | Path) -> None:
-    smoothed = {e["t"]: e for e in m.smoothed}
+    smoothed = {e.t: e for e in m.smoothed}
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
         for e in m.estimates:
-            s = smoothed.get(e["t"], {})
-            row = {**e, "utc": _iso(m, e["t"])}
-            row["smoothed_lat"], row["smoothed_lon"] = s.get("lat", ""), s.get("lon", "")
+            s = smoothed.get(e.t)
+            row = {**to_dict(e), "utc": _iso(m, e.t)}
+            row["smoothed_lat"], row["smoothed_lon"] = (s.lat, s.lon) if s else ("", "")
             w.writerow(row)
