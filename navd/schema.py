@@ -253,23 +253,25 @@ def output_of(row: dict[str, Any]) -> Output | str | None:
     kind = row.get("type")
     if kind == "estimate":
         cls: type[Estimate] | type[RangeDecision] = Estimate
+        what = "an estimate"
     elif (kind == "range" and "accepted" in row) or FROM_LOG_TYPE.get(str(kind)) == "range":
         cls = RangeDecision
+        what = "a range decision"
     else:
         return None
     for name, kinds in _NUMBERS[cls].items():
         v = row.get(name)
         if v is None and name in _REQUIRED[cls]:
-            return f"a {kind} without {name}"
+            return f"{what} without {name}"
         if v is not None and (type(v) is bool or not isinstance(v, kinds)):
-            return f"a {kind} whose {name} is not a number"
+            return f"{what} whose {name} is not a number"
     try:
         if cls is RangeDecision:
             return from_dict(RangeDecision, {**row, "type": "range"})
         return from_dict(Estimate, row)
     except TypeError:
         missing = sorted(_REQUIRED[cls] - row.keys())
-        return f"a {kind} without {', '.join(missing) or 'its fields'}"
+        return f"{what} without {', '.join(missing) or 'its fields'}"
 
 
 def _numbers(cls: type) -> dict[str, tuple[type, ...]]:

@@ -10,6 +10,7 @@ from navd.filter.beacons import BeaconResolver
 from navd.hil.scenario import load_scenario, scenario_from_dict
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
+from navd.schema import RangeDecision
 
 LAT0, LON0 = 38.32, -76.39
 
@@ -102,12 +103,12 @@ def test_ranges_go_on_through_a_location_outage(tmp_path) -> None:
     decisions = []
     for rec in m.records:
         for o in nav.feed(rec):
-            if o.get("type") == "range" and t0 <= o["t"] < t1:
+            if isinstance(o, RangeDecision) and t0 <= o.t < t1:
                 decisions.append(o)
     assert decisions, "the outage fell outside the mission"
-    assert all(d.get("beacon_predicted_s") for d in decisions)
-    assert all(d["reason"] != "no_beacon_position" for d in decisions)
-    assert sum(d["accepted"] for d in decisions) >= 0.8 * len(decisions)
+    assert all(d.beacon_predicted_s for d in decisions)
+    assert all(d.reason != "no_beacon_position" for d in decisions)
+    assert sum(d.accepted for d in decisions) >= 0.8 * len(decisions)
 
 
 def test_a_boat_that_wanders_is_not_predicted() -> None:

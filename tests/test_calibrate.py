@@ -84,7 +84,7 @@ def test_the_navigator_corrects_the_compass_by_the_configured_curve() -> None:
     nav.feed(Depth(0.0, 0.0))
     hc = 100.0
     nav.feed(Heading(0.0, hc))
-    assert nav._heading_deg == pytest.approx(hc - compass.deviation_deg(TRUE_DEV, hc))
+    assert nav.inputs.heading_deg == pytest.approx(hc - compass.deviation_deg(TRUE_DEV, hc))
     with pytest.raises(ConfigError, match="compass_deviation_deg"):
         config_from_dict({"navigation": {"compass_deviation_deg": [1.0, 2.0]}})
 

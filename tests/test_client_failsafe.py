@@ -25,19 +25,14 @@ from navd.client import Gone, NavClient, NavUnavailable, NoAnswer, Stale
 from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
 from navd.hil.bench_vehicle import free_port
+from navd.schema import Estimate, from_dict
 
 FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}
 
 
-def _estimate(t: float) -> dict:
-    return {
-        "t": t,
-        "lat": 37.05,
-        "lon": -80.66,
-        "std_n": 3.0,
-        "std_e": 3.0,
-        "integrity": "ok",
-    } | FIELDS
+def _estimate(t: float) -> Estimate:
+    est = {"t": t, "lat": 37.05, "lon": -80.66, "std_n": 3.0, "std_e": 3.0, "integrity": "ok"}
+    return from_dict(Estimate, est | FIELDS)
 
 
 _CHILD = textwrap.dedent(
@@ -45,14 +40,13 @@ _CHILD = textwrap.dedent(
     import asyncio, sys, time
     from navd.config import ZenohConfig
     from navd.daemon.publish import Publisher
+    from navd.schema import Estimate
     loop = asyncio.new_event_loop()
     pub = Publisher(ZenohConfig(listen=[sys.argv[1]]), "k9", loop, lambda n, b: None)
     t = 0.0
     print("up", flush=True)
     while True:
-        pub.put("estimate", {"t": t, "lat": 37.05, "lon": -80.66, "std_n": 3.0, "std_e": 3.0,
-                 "integrity": "ok", "current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0,
-                 "depth": 2.0, "mode": "submerged"})
+        pub.put(Estimate(t, 37.05, -80.66, 0.0, 0.0, 3.0, 3.0, 0.0, 2.0, "submerged", "ok"))
         t += 0.1
         time.sleep(0.1)
     """
@@ -120,7 +114,7 @@ def test_the_estimates_loop_raises_stale_when_estimates_stop(navd) -> None:
         async def publish() -> BaseException:
             task = asyncio.ensure_future(run())
             for k in range(10):
-                pub.put("estimate", _estimate(k * 0.1))
+                pub.put(_estimate(k * 0.1))
                 await asyncio.sleep(0.1)
             return await asyncio.wait_for(task, 5.0)  # navd alive, but silent
 
@@ -131,12 +125,12 @@ def test_the_estimates_loop_raises_stale_when_estimates_stop(navd) -> None:
 def test_latest_is_never_old_nor_from_before_a_reset(navd) -> None:
     pub, ep, _ = navd
     with NavClient("t1", [ep], stale_s=1.0) as nav:
-        pub.put("estimate", _estimate(1.0))
+        pub.put(_estimate(1.0))
         e = nav.latest()
         assert e is not None and e.t == 1.0
         pub.forget_latest()  # what the daemon does on an accepted reset
         assert nav.latest() is None
-        pub.put("estimate", _estimate(2.0))
+        pub.put(_estimate(2.0))
         assert nav.latest() is not None
         time.sleep(1.3)  # navd stopped publishing: what it has is no position
         assert nav.latest() is None
@@ -175,7 +169,7 @@ def test_subscribe_reports_a_silence_once(navd) -> None:
     with NavClient("t1", [ep], stale_s=0.4) as nav:
         nav.subscribe(lambda e: None, on_unavailable=said.append)
         for k in range(5):
-            pub.put("estimate", _estimate(k * 0.1))
+            pub.put(_estimate(k * 0.1))
             time.sleep(0.1)
         time.sleep(1.2)
     assert len(said) == 1 and isinstance(said[0], Stale)
@@ -219,7 +213,7 @@ def test_wrong_credentials_and_silence_say_which(tmp_path) -> None:
         finally:
             nobody.close()
         with NavClient("t1", [ep], config_file=str(client_file)) as nav:
-            pub.put("estimate", _estimate(1.0))
+            pub.put(_estimate(1.0))
             assert nav.latest() is not None  # the right credentials read navd
     finally:
         pub.close()
@@ -250,7 +244,7 @@ def test_navd_watch_takes_a_zenoh_file_under_the_shipped_access_control(tmp_path
     def publish() -> None:
         k = 0
         while not stop[0]:
-            pub.put("estimate", _estimate(k * 0.1))
+            pub.put(_estimate(k * 0.1))
             k += 1
             time.sleep(0.1)
 

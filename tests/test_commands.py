@@ -28,6 +28,7 @@ from navd.daemon.publish import (
     validate_reset,
     zenoh_config,
 )
+from navd.schema import Estimate
 
 
 def _free_port() -> int:
@@ -173,7 +174,7 @@ def test_the_shipped_access_control_refuses_commands_of_the_unauthorised(tmp_pat
 
     try:
         observer = session("observer", "watch-secret")
-        pub.put("estimate", {"t": 1.0})
+        pub.put(Estimate(1.0, 37.05, -80.66, 0.0, 0.0, 3.0, 3.0, 0.0, 2.0, "submerged", "ok"))
         latest = [r for r in observer.get("auv/t1/nav/latest", timeout=3.0) if r.ok is not None]
         assert len(latest) == 1  # telemetry is the crew's
         assert _ask(observer, "reset", b"{}") == []  # its command never reaches navd

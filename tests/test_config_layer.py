@@ -122,27 +122,20 @@ def test_report_reads_the_decisions_of_a_daemon_log(tmp_path: Path) -> None:
     measurements there): the report still counts them."""
     from navd.formats.log import RecordLog
     from navd.records import Range
+    from navd.schema import Estimate, RangeDecision, from_dict
 
     rlog = RecordLog(tmp_path / "log")
     est = {"type": "estimate", "t": 10.0, "lat": 37.0, "lon": -80.6, "current_n": 0.0}
     est |= {"current_e": 0.0, "std_n": 3.0, "std_e": 3.0, "cov_ne": 0.0, "depth": 2.0}
     est |= {"mode": "submerged", "integrity": "ok", "heading_deg": 0.0, "speed_mps": 1.0}
     rlog.record(Range(10.0, 9.0, 700.0, "udb", 37.006, -80.6, 3.0))
-    rlog.output(est)
+    rlog.output(from_dict(Estimate, est))
     rlog.output(
-        {
-            "type": "range",
-            "t": 10.0,
-            "t_ping": 9.0,
-            "beacon": "udb",
-            "accepted": True,
-            "residual_m": 1.0,
-            "gate_m": 9.0,
-            "reason": "ok",
-            "range_m": 700.0,
-        }
+        RangeDecision(
+            10.0, 9.0, "udb", accepted=True, residual_m=1.0, gate_m=9.0, reason="ok", range_m=700.0
+        )
     )
-    rlog.output({**est, "t": 10.1})
+    rlog.output(from_dict(Estimate, {**est, "t": 10.1}))
     rlog.close()
     assert rlog.path is not None
     r = _navd("report", str(rlog.path), "--out", str(tmp_path / "rep"))

@@ -10,6 +10,7 @@ import asyncio
 from pathlib import Path
 
 import pytest
+from serialised import rows
 
 from navd.config import ConfigError, config_from_dict
 from navd.drivers import ahrs, castle, gps, keller, modem
@@ -302,7 +303,7 @@ def test_the_filter_ranges_from_the_modems_round_trip() -> None:
     true_m = 300.0
     twtt = 2 * true_m / 1500.0
     outs = nav.feed(Range(1.0, 0.8, 1400.0 * twtt / 2, "udb", 37.0, -79.99, 0.0, twtt))
-    (d,) = [o for o in outs if o.get("type") == "range"]
+    (d,) = [o for o in rows(outs) if o.get("type") == "range"]
     assert d["range_m"] == pytest.approx(true_m)
 
 

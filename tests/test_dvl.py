@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from conftest import mission
+from serialised import rows
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import _ne_error
@@ -52,7 +53,7 @@ def test_predicted_error_bounds_the_actual_and_tells_when_to_surface() -> None:
     cfg = config_from_dict(deep_merge(crew_config(m.scenario), m.config_overrides))
     res = run_navigator(MeasurementLog({}, m.records, []), cfg)
     truth = {round(s.t, 3): s for s in m.truth}
-    sub = [o for o in res.outputs if o["type"] == "estimate" and o["mode"] == "submerged"]
+    sub = [o for o in rows(res.outputs) if o["type"] == "estimate" and o["mode"] == "submerged"]
     last = sub[-1]
     tr = truth[round(last["t"], 3)]
     dvl_err = math.hypot(*_ne_error(last["dvl_lat"], last["dvl_lon"], tr.lat, tr.lon))

@@ -7,6 +7,7 @@ import math
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from serialised import rows
 
 from navd.config import ConfigError, config_from_dict
 from navd.filter import Navigator
@@ -99,7 +100,7 @@ def test_filter_never_publishes_nan(objs: list[dict]) -> None:
         out.extend(nav.feed(r))
     if recs:
         out.extend(nav.advance(recs[-1].t))
-    for o in out:
+    for o in rows(out):
         for v in o.values():
             if isinstance(v, float):
                 assert math.isfinite(v)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+from serialised import rows
+
 from navd import geodesy
 from navd.config import config_from_dict
 from navd.filter import Navigator
@@ -59,7 +61,7 @@ def _error_m(e: dict, lat: float = LAT0, lon: float = LON0) -> float:
 def test_one_fix_at_zero_zero_is_refused_and_moves_nothing() -> None:
     nav = _nav()
     out = _surface(nav, 0.0, 60.0, bad={40: (0.0, 0.0)})
-    est = [o for o in out if o["type"] == "estimate" and o["t"] > 5.0]
+    est = [o for o in rows(out) if o["type"] == "estimate" and o["t"] > 5.0]
     assert max(_error_m(e) for e in est) < 10.0
     assert nav.counters["gps_refused_gate"] == 1
     assert nav.counters["gps_reacquired"] == 0
@@ -70,7 +72,7 @@ def test_fixes_28_km_off_are_refused_and_said() -> None:
     nav = _nav()
     bad = {30: (38.25, LON0), 31: (38.25, LON0), 32: (38.25, LON0)}
     out = _surface(nav, 0.0, 60.0, bad=bad)
-    est = [o for o in out if o["type"] == "estimate" and o["t"] > 5.0]
+    est = [o for o in rows(out) if o["type"] == "estimate" and o["t"] > 5.0]
     assert max(_error_m(e) for e in est) < 10.0 and nav.counters["gps_refused_gate"] == 3
     # three refused in a row: the estimate and the receiver disagree, and it is said
     assert all(o["integrity"] == "degraded" for o in est if 32.1 < o["t"] < 33.0)
@@ -85,7 +87,7 @@ def test_fixes_that_agree_with_each_other_are_the_position() -> None:
     north = geodesy.offset_position(math.radians(LAT0), math.radians(LON0), 500.0, 0.0, 0.0)
     lat1, lon1 = math.degrees(north[0]), math.degrees(north[1])
     out = _surface(nav, 30.0, 60.0, lat=lat1, lon=lon1)
-    est = [o for o in out if o["type"] == "estimate"]
+    est = [o for o in rows(out) if o["type"] == "estimate"]
     late = [e for e in est if e["t"] > 40.0]
     assert late and max(_error_m(e, lat1, lon1) for e in late) < 10.0
     assert nav.counters["gps_reacquired"] == 1
@@ -107,12 +109,14 @@ def test_a_run_of_refused_ranges_is_degraded_then_lost_whatever_the_window_holds
             k += 1  # a range of 2 km from a beacon 110 m away: refused every time
             out += nav.feed(Range(t + 0.05, t - 0.5, 2000.0, "udb", *beacon))
         t = round(t + 0.1, 1)
-    est = [o for o in out if o["type"] == "estimate"]
-    refused = [o for o in out if o["type"] == "range" and not o["accepted"]]
+    est = [o for o in rows(out) if o["type"] == "estimate"]
+    refused = [o for o in rows(out) if o["type"] == "range" and not o["accepted"]]
     assert len(refused) >= 9
     t3, t8 = refused[2]["t"], refused[7]["t"]
     assert all(e["integrity"] == "ok" for e in est if 20.5 < e["t"] < refused[1]["t"] + 0.05)
     assert all(e["integrity"] != "ok" for e in est if e["t"] > t3 + 0.2)
     # lost from the eighth on, until the ranges' own consistent evidence re-acquires
-    t_re = next(o["t"] for o in out if o["type"] == "range" and o["reason"] == "gate_reacquire")
+    t_re = next(
+        o["t"] for o in rows(out) if o["type"] == "range" and o["reason"] == "gate_reacquire"
+    )
     assert all(e["integrity"] == "lost" for e in est if t8 + 0.2 < e["t"] < t_re)

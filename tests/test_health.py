@@ -18,6 +18,7 @@ from navd.drivers import ahrs, castle, keller, modem
 from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
 from navd.records import Attitude, Depth, Gps, Pressure, Rpm
+from navd.schema import Estimate
 
 
 class Clock:
@@ -69,8 +70,8 @@ def test_a_navigating_daemon_is_ok(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 10.0)
     h = d.health()
-    assert h["degraded"] == [], h["degraded"]
-    assert h["ok"] and h["estimates_per_s"] == pytest.approx(10.0, abs=0.5)
+    assert h.degraded == [], h.degraded
+    assert h.ok and h.estimates_per_s == pytest.approx(10.0, abs=0.5)
 
 
 def test_a_stalled_pressure_sensor_is_not_ok(tmp_path: Path) -> None:
@@ -78,8 +79,8 @@ def test_a_stalled_pressure_sensor_is_not_ok(tmp_path: Path) -> None:
     _navigate(d, clock, 10.0)
     _navigate(d, clock, 12.0, depth_bar=None)  # depth frozen for 12 s
     h = d.health()
-    assert not h["ok"] and any(p.startswith("depth: stale") for p in h["degraded"])
-    assert h["input_age_s"]["depth"] == pytest.approx(12.0, abs=0.2)
+    assert not h.ok and any(p.startswith("depth: stale") for p in h.degraded)
+    assert h.input_age_s["depth"] == pytest.approx(12.0, abs=0.2)
 
 
 def test_keller_exception_answers_are_not_readings(tmp_path: Path) -> None:
@@ -93,7 +94,7 @@ def test_keller_exception_answers_are_not_readings(tmp_path: Path) -> None:
         handle(rec)
     h = d.health()
     assert d.devices["pressure"].records == records
-    assert not h["ok"] and any("device error" in p for p in h["degraded"])
+    assert not h.ok and any("device error" in p for p in h.degraded)
     # code 32, not initialised (a power blip): initialise again, keep polling
     dec.request(keller.CH_PRESSURE)
     for rec in dec.feed(_keller_exception(1, keller.E_NOT_INITIALISED), clock.t):
@@ -116,8 +117,8 @@ def test_a_modem_that_never_replies_is_not_ok(tmp_path: Path) -> None:
         _navigate(d, clock, 5.0)
         pinger.handle(modem.ModemReply(clock.t, "no_reply"))
     h = d.health()
-    assert not h["ok"] and any("pings had no range" in p for p in h["degraded"])
-    assert h["pings"]["last"] == ["no_reply"] * 3
+    assert not h.ok and any("pings had no range" in p for p in h.degraded)
+    assert h.pings["last"] == ["no_reply"] * 3
 
 
 def test_no_estimates_is_not_ok_and_starves_the_watchdog(tmp_path: Path) -> None:
@@ -126,7 +127,7 @@ def test_no_estimates_is_not_ok_and_starves_the_watchdog(tmp_path: Path) -> None
     assert d._navigating(clock.t)
     clock.t += 18.0  # the loop runs, the ports are open, but no estimate went out
     h = d.health()
-    assert not h["ok"] and any(p.startswith("estimates at 0.0/s") for p in h["degraded"])
+    assert not h.ok and any(p.startswith("estimates at 0.0/s") for p in h.degraded)
     assert not d._navigating(clock.t)
 
 
@@ -143,7 +144,7 @@ def test_a_navigator_that_raises_is_caught_counted_and_restarted(tmp_path: Path)
     d.feed(Rpm(clock.t, 0.0))
     d.nav.feed = real  # type: ignore[method-assign]
     assert d.internal_errors == {"navigator: ZeroDivisionError": 2}
-    assert any("internal errors" in p for p in d.health()["degraded"])
+    assert any("internal errors" in p for p in d.health().degraded)
     _navigate(d, clock, 2.0)  # navigation resumes at the next fix
     assert d.nav.filter.initialised
 
@@ -160,23 +161,23 @@ def test_a_vehicle_that_surfaces_with_a_stalled_depth_sensor_takes_gps() -> None
         out += nav.feed(Gps(10.0 + k * 0.1, 37.0501, -80.66, 0.0, 1))
     out += nav.advance(12.0)
     assert nav.counters["gps_with_stale_depth"] == 20
-    assert out[-1]["mode"] != "submerged"
+    assert isinstance(out[-1], Estimate) and out[-1].mode != "submerged"
     # the fixes (11 m north, at the warm-up weight) pulled the estimate most of the way
-    assert out[-1]["lat"] > 37.05006
+    assert out[-1].lat > 37.05006
 
 
 def test_bursts_of_corrupt_data_and_a_flood_are_said(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 10.0)
-    assert d.health()["ok"]
+    assert d.health().ok
     d.devices["pressure"].decoder.stats.bad_checksum += 4  # a garbage burst
     for _ in range(1000):  # and the AHRS babbling at ten times its rate (20 Hz asked)
         d.devices["ahrs"].recent.append(clock.t)
     h = d.health()
-    assert any(p.startswith("pressure: 4 corrupt frames") for p in h["degraded"])
-    assert any(p.startswith("ahrs: ") and "records/s" in p for p in h["degraded"])
+    assert any(p.startswith("pressure: 4 corrupt frames") for p in h.degraded)
+    assert any(p.startswith("ahrs: ") and "records/s" in p for p in h.degraded)
     _navigate(d, clock, 6.0)  # the burst is over, the flood too
-    assert not [p for p in d.health()["degraded"] if "corrupt" in p or "records/s" in p]
+    assert not [p for p in d.health().degraded if "corrupt" in p or "records/s" in p]
 
 
 def test_an_ahrs_that_does_not_answer_the_firmware_probe_is_not_ok(tmp_path: Path) -> None:
@@ -188,11 +189,11 @@ def test_an_ahrs_that_does_not_answer_the_firmware_probe_is_not_ok(tmp_path: Pat
     st.t_probe = clock.t
     _navigate(d, clock, 4.0)
     h = d.health()
-    assert not h["ok"] and any("firmware probe" in p for p in h["degraded"])
+    assert not h.ok and any("firmware probe" in p for p in h.degraded)
     st.handle(ahrs.Firmware(clock.t, 1134))
     h = d.health()
-    assert h["devices"]["ahrs"]["firmware"] == 1134
-    assert not any("firmware probe" in p for p in h["degraded"])
+    assert h.devices["ahrs"].info["firmware"] == 1134
+    assert not any("firmware probe" in p for p in h.degraded)
 
 
 def test_the_esc_battery_is_in_health_and_its_error_answer_is_not_a_speed(
@@ -207,9 +208,9 @@ def test_the_esc_battery_is_in_health_and_its_error_answer_is_not_a_speed(
         for rec in dec.feed(bytes.fromhex(answer), clock.t):
             handle(rec)
     h = d.health()
-    assert h["esc"]["battery_v"] == pytest.approx(40.0)
-    assert h["devices"]["motor"]["device_errors"] == 1
-    assert any("motor: device error" in p for p in h["degraded"])
+    assert h.esc["battery_v"] == pytest.approx(40.0)
+    assert h.devices["motor"].device_errors == 1
+    assert any("motor: device error" in p for p in h.degraded)
 
 
 def test_modem_refusals_are_counted(tmp_path: Path) -> None:
@@ -221,7 +222,7 @@ def test_modem_refusals_are_counted(tmp_path: Path) -> None:
     for rec in modem.ModemDecoder().feed(b"Command 'ATRX2' not found\r\n", clock.t):
         pinger.handle(rec)
     h = d.health()
-    assert h["pings"]["refused"] == 1 and h["pings"]["last"] == ["refused"]
+    assert h.pings["refused"] == 1 and h.pings["last"] == ["refused"]
     assert pinger.ping_t is None  # the ping is over: the next one may go
 
 
@@ -232,8 +233,8 @@ def test_a_modem_stuck_outside_command_mode_is_not_ok(tmp_path: Path) -> None:
     pinger.session.opened(clock.t)  # the port opened; the modem never answers the escape
     _navigate(d, clock, 12.0)
     h = d.health()
-    assert not h["ok"] and any("not in command mode" in p for p in h["degraded"])
-    assert h["modem"]["ready"] is False
+    assert not h.ok and any("not in command mode" in p for p in h.degraded)
+    assert h.modem["ready"] is False
 
 
 def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: Path) -> None:
@@ -257,7 +258,7 @@ def test_a_silent_ahrs_on_an_open_port_is_soft_reset_and_set_up_again(tmp_path: 
         assert len(port.written) == 1  # type: ignore[union-attr]
 
     asyncio.run(main())
-    assert d.health()["devices"]["ahrs"]["resets"] == 1
+    assert d.health().devices["ahrs"].resets == 1
 
 
 def test_an_unanswered_firmware_probe_is_asked_again(tmp_path: Path) -> None:
@@ -273,4 +274,4 @@ def test_an_unanswered_firmware_probe_is_asked_again(tmp_path: Path) -> None:
     st.every_second(clock.t)
     assert ahrs.encode_firmware_probe() in port.written  # type: ignore[union-attr]
     st.handle(ahrs.Firmware(clock.t, 1134))
-    assert not any("firmware probe" in p for p in d.health()["degraded"])
+    assert not any("firmware probe" in p for p in d.health().degraded)

@@ -6,6 +6,7 @@ import dataclasses
 
 import pytest
 from conftest import mission
+from serialised import rows
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
@@ -41,5 +42,5 @@ def test_seed_004_simulation_converges_and_smoothing_helps() -> None:
     _, _, smooth = _run("seaglider", 1, smooth=True)
     assert filt.rms_m < 3.0 and filt.current_rms_mps < 0.05
     assert smooth.rms_m < filt.rms_m
-    ests = [o for o in out if o["type"] == "estimate" and o["mode"] == "submerged"]
+    ests = [o for o in rows(out) if o["type"] == "estimate" and o["mode"] == "submerged"]
     assert ests[-1]["std_n"] < 3.0 and ests[-1]["std_e"] < 3.0

@@ -8,9 +8,11 @@ gets: coincident, collinear, on top of the vehicle, the vehicle on their baselin
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from serialised import rows
 
 from navd.config import config_from_dict
 from navd.filter import Navigator
@@ -28,6 +30,7 @@ from navd.records import (
     TravelTime,
     Velocity,
 )
+from navd.schema import Estimate, Published
 
 LAT0, LON0 = 37.05, -80.66
 D = 1e-4  # about 11 m of latitude
@@ -118,8 +121,8 @@ def streams(draw: st.DrawFn) -> list[object]:
     return out
 
 
-def _check(out: list[dict]) -> None:
-    for o in out:
+def _check(out: Iterable[Published]) -> None:
+    for o in rows(out):
         for k, v in o.items():
             if isinstance(v, float):
                 assert math.isfinite(v), (k, o)
@@ -130,11 +133,11 @@ def _check(out: list[dict]) -> None:
 def test_no_finite_record_stream_makes_the_navigator_raise(mode: str, recs: list) -> None:
     cfg = config_from_dict({"navigation": {"filter": mode}, "beacons": BEACONS})
     nav = Navigator(cfg, keep_history=mode != "vlbl")
-    out: list[dict] = []
+    out: list[Published] = []
     for r in recs:
         out += nav.feed(r)
     out += nav.advance(recs[-1].t + 1.0)
-    heading = next((o["heading_deg"] for o in reversed(out) if o["type"] == "estimate"), None)
+    heading = next((o.heading_deg for o in reversed(out) if isinstance(o, Estimate)), None)
     out.append(nav.advisory(recs[-1].t + 1.0, heading))  # the daemon's 1 Hz advisory too
     _check(out)
     if mode != "vlbl":

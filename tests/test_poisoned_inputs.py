@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from serialised import rows
 
 from navd.config import config_from_dict
 from navd.drivers import gps, keller, modem
@@ -67,8 +68,8 @@ def test_a_range_completed_after_other_records_is_still_fused() -> None:
     """Finding 1: at 9600 baud the location line arrives 55 ms after the Range line."""
     on_time, out_a = _dive(0.0)
     late, out_b = _dive(0.055)
-    ranges_a = [o for o in out_a if o["type"] == "range"]
-    ranges_b = [o for o in out_b if o["type"] == "range"]
+    ranges_a = [o for o in rows(out_a) if o["type"] == "range"]
+    ranges_b = [o for o in rows(out_b) if o["type"] == "range"]
     assert len(ranges_b) == len(ranges_a) == 6
     assert late.counters["skipped_out_of_order"] == 0
     assert late.counters["ranges_late"] == 6
@@ -76,14 +77,14 @@ def test_a_range_completed_after_other_records_is_still_fused() -> None:
         assert a["t"] == b["t"] and a["accepted"] == b["accepted"]
         # the same geometry: fused at its own time, not at its arrival
         assert b["residual_m"] == pytest.approx(a["residual_m"], abs=0.05)
-    est_a = [o for o in out_a if o["type"] == "estimate"][-1]
-    est_b = [o for o in out_b if o["type"] == "estimate"][-1]
+    est_a = [o for o in rows(out_a) if o["type"] == "estimate"][-1]
+    est_b = [o for o in rows(out_b) if o["type"] == "estimate"][-1]
     assert math.dist((est_a["lat"], est_a["lon"]), (est_b["lat"], est_b["lon"])) < 1e-6
 
 
 def test_a_range_later_than_any_line_could_make_it_is_out_of_order() -> None:
     nav, out = _dive(3.0)
-    assert not [o for o in out if o["type"] == "range"]
+    assert not [o for o in rows(out) if o["type"] == "range"]
     assert nav.counters["skipped_out_of_order"] == 6
 
 
@@ -161,7 +162,7 @@ def test_a_nan_altitude_that_reaches_the_navigator_does_not_poison_it() -> None:
     for k in range(20):
         out += nav.feed(Gps(k * 0.1, LAT0, LON0, 0.0 if k != 5 else math.nan, 1))
     out += nav.advance(2.5)
-    est = [o for o in out if o["type"] == "estimate"]
+    est = [o for o in rows(out) if o["type"] == "estimate"]
     assert est and math.isfinite(est[-1]["lat"]) and nav.surface_altitude == 0.0
     assert nav.counters["skipped_implausible"] == 1
 
@@ -189,7 +190,7 @@ def test_a_huge_rpm_in_a_log_is_refused_not_walked() -> None:
     out = nav.advance(3.0)
     assert time.perf_counter() - t0 < 5.0
     assert nav.counters["skipped_implausible"] == 1
-    assert all(math.isfinite(o["lat"]) for o in out)
+    assert all(math.isfinite(o["lat"]) for o in rows(out))
 
 
 def _lines(*recs: str) -> list[str]:
@@ -284,7 +285,7 @@ def test_a_daemon_log_replays_its_ticks_where_they_were_taken() -> None:
         for _, rec in iter_lines(lines):
             assert not isinstance(rec, Skipped)
             out += nav.feed(rec)
-        return {o["t"]: o for o in out if o["type"] == "estimate"}
+        return {o["t"]: o for o in rows(out) if o["type"] == "estimate"}
 
     head = [f'{{"type":"gps","t":{k / 10},"lat":37.05,"lon":-80.66,"fix":1}}\n' for k in range(50)]
     head += ['{"type":"depth","t":5.01,"m":2.0}\n', '{"type":"rpm","t":5.02,"rpm":1000}\n']

@@ -10,9 +10,12 @@ from pathlib import Path
 
 import pytest
 from conftest import mission
+from serialised import rows
 
 from navd.analysis.score import read_jsonl, score
+from navd.formats.outputs import read_outputs
 from navd.hil.sim_cli import write_mission
+from navd.schema import Estimate
 
 NAVD = [sys.executable, "-m", "navd.cli"]
 HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'
@@ -75,10 +78,10 @@ def test_filter_beats_dead_reckoning_and_smoother_beats_filter(
     truth = read_jsonl(claytor / "truth.jsonl")
     assert replay_claytor(claytor, tmp_path / "f.jsonl").returncode == 0
     assert replay_claytor(claytor, tmp_path / "s.jsonl", "--smooth").returncode == 0
-    filt = score(read_jsonl(tmp_path / "f.jsonl"), truth)
-    smooth_rows = read_jsonl(tmp_path / "s.jsonl")
-    assert all(o.get("smoothed") for o in smooth_rows if o["type"] == "estimate")
-    smooth = score(smooth_rows, truth)
+    filt = score(read_outputs(tmp_path / "f.jsonl"), truth)
+    smoothed = read_outputs(tmp_path / "s.jsonl")
+    assert all(o.smoothed for o in smoothed if isinstance(o, Estimate))
+    smooth = score(smoothed, truth)
     assert smooth.rms_m < filt.rms_m
     assert filt.rms_m < 25.0
 
@@ -206,7 +209,7 @@ def test_long_silence_restarts_at_the_next_fix() -> None:
     out += nav.feed(Heading(3600.0, 10.0))  # nothing at all for an hour
     out += nav.feed(Gps(3600.5, 37.06, -80.66, 0.0, 1))
     out += nav.advance(3601.0)
-    est = [o for o in out if o["type"] == "estimate"]
+    est = [o for o in rows(out) if o["type"] == "estimate"]
     assert not [o for o in est if 2.0 < o["t"] < 3600.5]
     assert nav.counters["restarts_after_gap"] == 1
     assert est[-1]["lat"] == pytest.approx(37.06, abs=1e-6)
@@ -224,7 +227,7 @@ def test_depth_from_pressure_zeroed_at_the_surface() -> None:
         nav.feed(Pressure(k * 0.1 + 0.05, 1.030))
     out = nav.feed(Pressure(10.0, 1.030 + 0.0980665))  # 1 m of fresh water, GPS long gone
     out += nav.advance(10.0)
-    assert out[-1]["depth"] == pytest.approx(1.0, abs=1e-6)
+    assert isinstance(out[-1], Estimate) and out[-1].depth == pytest.approx(1.0, abs=1e-6)
 
 
 def test_operator_commands_in_the_log_are_replayed(tmp_path: Path) -> None:
@@ -252,9 +255,9 @@ def test_operator_commands_in_the_log_are_replayed(tmp_path: Path) -> None:
     r = run("replay", str(log), "--config", str(cfg), "--out", str(out))
     assert r.returncode == 0, r.stderr
     outs = read_jsonl(out)
-    (rng,) = [o for o in outs if o["type"] == "range"]
+    (rng,) = [o for o in rows(outs) if o["type"] == "range"]
     assert rng["accepted"] and abs(rng["residual_m"]) < 1.0  # turnaround kept
-    ticks = [o["t"] for o in outs if o["type"] == "estimate"]
+    ticks = [o["t"] for o in rows(outs) if o["type"] == "estimate"]
     assert max(t for t in ticks if t < 10.0) <= 6.0 and max(ticks) > 10.0
 
 

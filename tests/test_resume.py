@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 from conftest import mission
+from serialised import rows
 
 from navd.analysis.replay import run_navigator
 from navd.config import config_from_dict
@@ -59,7 +60,7 @@ def test_a_resumed_navigator_goes_on_honestly() -> None:
         if r.t > T_KILL:
             break
         out_a += before.feed(r)
-    last = [o for o in out_a if o["type"] == "estimate"][-1]
+    last = [o for o in rows(out_a) if o["type"] == "estimate"][-1]
     assert last["mode"] == "submerged"
     after = Navigator(cfg)
     res = _resume_record(before, T_BACK, T_BACK - T_KILL)
@@ -68,12 +69,12 @@ def test_a_resumed_navigator_goes_on_honestly() -> None:
     for r in recs:
         if r.t > T_BACK:
             out_b += after.feed(r)
-    est = [o for o in out_b if o["type"] == "estimate"]
+    est = [o for o in rows(out_b) if o["type"] == "estimate"]
     assert est[0]["t"] - T_BACK < 0.2  # estimates at once, no GPS needed
     grown = math.hypot(last["std_n"], cfg.checkpoint.drift_mps * (T_BACK - T_KILL))
     assert est[0]["std_n"] == pytest.approx(grown, rel=0.1)
     assert est[0]["integrity"] == "degraded" and "resumed" in est[0]["integrity_reason"]
-    accepted = [o["t"] for o in out_b if o["type"] == "range" and o["accepted"]]
+    accepted = [o["t"] for o in rows(out_b) if o["type"] == "range" and o["accepted"]]
     if len(accepted) >= 3:  # confirmed by ranges: no longer "resumed"
         later = [o for o in est if o["t"] > accepted[2] + 0.2]
         assert all("resumed" not in (o.get("integrity_reason") or "") for o in later)
@@ -102,8 +103,8 @@ def test_a_replay_across_the_restart_gives_the_resumed_estimates(tmp_path: Path)
     log = read_measurement_log(p)
     assert not log.skipped
     replayed = run_navigator(log, cfg).outputs
-    after = [o for o in replayed if o["type"] == "estimate" and o["t"] > T_KILL]
-    live_est = [o for o in live_out if o["type"] == "estimate"]
+    after = [o for o in rows(replayed) if o["type"] == "estimate" and o["t"] > T_KILL]
+    live_est = [o for o in rows(live_out) if o["type"] == "estimate"]
     assert after and after[0]["t"] > T_BACK  # nothing made up for the time navd was down
     assert after[: len(live_est)] == live_est  # (replay also steps to the last record)
 

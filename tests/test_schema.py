@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import pytest
+
 from navd.formats import jsonlines
-from navd.schema import Estimate, RangeDecision, from_dict, outputs_of, to_dict
+from navd.schema import Estimate, RangeDecision, finite, from_dict, output_of, to_dict
 
 
 def _estimate(**kw: object) -> Estimate:
@@ -38,8 +42,30 @@ def test_decisions_are_found_in_replay_output_and_daemon_log_alike() -> None:
     measured = {"type": "range", "t": 5.0, "t_ping": 4.0, "m": 700.0, "beacon": "udb"}
     est = to_dict(_estimate())
     for rows in ([est, dec], [est, measured, {**dec, "type": "decision"}]):
-        e, r = outputs_of(rows)
-        assert e == [est] and len(r) == 1 and r[0]["type"] == "range" and r[0]["accepted"]
+        got = [o for o in map(output_of, rows) if o is not None]
+        assert got == [_estimate(), RangeDecision(5.0, 4.0, "udb", accepted=True, reason="ok")]
+
+
+@pytest.mark.parametrize(
+    "row, says",
+    [
+        ({"lat": None}, "an estimate without lat"),
+        ({"std_n": "3"}, "an estimate whose std_n is not a number"),
+        ({"depth": True}, "an estimate whose depth is not a number"),
+    ],
+)
+def test_a_row_that_is_not_an_estimate_is_named(row: dict, says: str) -> None:
+    assert output_of(to_dict(_estimate()) | row) == says
+    bare = {k: v for k, v in to_dict(_estimate()).items() if k != "mode"}
+    assert output_of(bare) == "an estimate without mode"
+
+
+def test_outputs_are_frozen_and_a_nan_is_seen() -> None:
+    e = _estimate()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        e.lat = 0.0  # type: ignore[misc]
+    assert finite(e) and finite(_estimate(dr_lat=None))
+    assert not finite(_estimate(dr_lat=float("nan"))) and not finite(_estimate(std_n=float("inf")))
 
 
 def test_the_client_ignores_what_is_not_navds_schema() -> None:

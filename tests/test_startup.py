@@ -15,6 +15,7 @@ import yaml
 from navd.config import ConfigError, config_from_dict, load_config
 from navd.daemon.daemon import Daemon
 from navd.formats.log import RecordLog
+from navd.schema import Published
 
 
 def _check_config(tmp_path: Path, text: str) -> subprocess.CompletedProcess:
@@ -83,7 +84,7 @@ class _QuietPub:
     errors = 0
     commands: dict = {}
 
-    def put(self, kind: str, body: dict) -> bytes:
+    def put(self, out: Published) -> bytes:
         return b""
 
     def close(self) -> None:
@@ -112,10 +113,10 @@ def test_the_daemon_navigates_while_zenoh_cannot_open(tmp_path: Path) -> None:
         task = asyncio.get_running_loop().create_task(d.run(stop))
         await asyncio.sleep(0.5)
         h = d.health()
-        assert any(p.startswith("zenoh: not open (OSError") for p in h["degraded"])
+        assert any(p.startswith("zenoh: not open (OSError") for p in h.degraded)
         assert d.ticks >= 3  # the filter ticks without zenoh
         await asyncio.sleep(1.0)
-        assert d.pub is not None and d.health()["zenoh"]["open"]
+        assert d.pub is not None and d.health().zenoh["open"]
         stop.set()
         await task
 

@@ -24,6 +24,7 @@ from navd.client import NavClient, NavFleet
 from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
 from navd.hil.bench_vehicle import free_port
+from navd.schema import Estimate, Health, from_dict
 
 SHIPPED = Path(__file__).parent.parent / "config" / "zenoh.json5"
 _FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}
@@ -75,17 +76,24 @@ def vehicle(tmp_path: Path) -> Iterator[tuple[Publisher, int, Loop]]:
         loop.close()
 
 
-def _estimate(t: float) -> dict[str, Any]:
+def _estimate(t: float) -> Estimate:
     est = {"t": t, "lat": 37.05, "lon": -80.66, "std_n": 3.0, "std_e": 3.0, "integrity": "ok"}
-    return {**est, **_FIELDS}
+    return from_dict(Estimate, {**est, **_FIELDS})
+
+
+def _health(t: float) -> Health:
+    return Health(
+        t, "submerged", "ok", True, [], 10.0, {}, None, {}, {}, {}, {}, 0, 0, {}, {}, {}, {},
+        None, None, {},
+    )  # fmt: skip
 
 
 def _publish_for(pub: Publisher, seconds: float, stop: threading.Event) -> None:
     t = 100.0
     end = time.monotonic() + seconds
     while time.monotonic() < end and not stop.is_set():
-        pub.put("estimate", _estimate(t))
-        pub.put("health", {"t": t, "status": "ok"})
+        pub.put(_estimate(t))
+        pub.put(_health(t))
         t += 0.1
         time.sleep(0.1)
 
@@ -137,7 +145,7 @@ def test_no_crew_session_can_speak_as_navd(vehicle) -> None:
     assert seen, "navd's own estimates must still arrive"
     assert all(e.lat == pytest.approx(37.05) for e in seen), "a forged estimate got through"
     assert ranges == []  # navd published no range: every one seen would be forged
-    assert health and all(b'"status":"ok"' in h and b'"t":1.0' not in h for h in health)
+    assert health and all(b'"type":"health"' in h and b'"t":1.0' not in h for h in health)
     assert all(a is not None and a.lat == pytest.approx(37.05) for a in answers)
     assert up == {"t1"}  # navd's token, and no ghost
 

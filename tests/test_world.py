@@ -70,9 +70,10 @@ def test_antimeridian_scenario_crosses_the_line() -> None:
 
 def test_replies_to_reacquire_counts_from_the_first_rejection_to_the_next_accept() -> None:
     from navd.analysis.score import replies_to_reacquire
+    from navd.schema import RangeDecision
 
-    def r(ok: bool, reason: str = "ok") -> dict:
-        return {"accepted": ok, "reason": reason}
+    def r(ok: bool, reason: str = "ok") -> RangeDecision:
+        return RangeDecision(0.0, 0.0, "udb", accepted=ok, reason=reason)
 
     ranges = [
         r(True),
