@@ -28,12 +28,12 @@ import yaml
 
 from bench.common import report
 from navd.analysis.score import read_jsonl, score
-from navd.config import deep_merge
 from navd.filter.compass import deviation_deg
 from navd.formats.outputs import read_outputs
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
+from navd.settings import deep_merge
 
 STEPS = ("as configured", "compass calibrated", "compass and speed calibrated")
 

@@ -8,9 +8,10 @@ from pathlib import Path
 import yaml
 
 from navd.analysis.replay import replay
-from navd.config import deep_merge, load_config
+from navd.config import load_config
 from navd.formats.outputs import read_outputs
 from navd.schema import Output
+from navd.settings import deep_merge
 
 
 def mode_config(mission_dir: Path, mode: str) -> Path:

@@ -13,8 +13,9 @@ import sys
 import typing
 from pathlib import Path
 
-from navd.config import ConfigError, load_config
+from navd.config import load_config
 from navd.formats.mlog import LogError
+from navd.settings import ConfigError
 
 #: the modules of optional extras, and the extra that brings each
 _EXTRAS = {
@@ -149,7 +150,7 @@ def _cmd_foxglove(args: argparse.Namespace) -> int:
 
 
 def _cmd_check_config(args: argparse.Namespace) -> int:
-    from navd.config import check_for_run
+    from navd.settings import check_for_run
 
     cfg = _config(args, "file")
     if not args.offline:
@@ -214,9 +215,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import asyncio
     import signal
 
-    from navd.config import check_for_run, default_config_path
+    from navd.config import default_config_path
     from navd.daemon.daemon import Daemon
     from navd.daemon.publish import Publisher, zenoh_config
+    from navd.settings import check_for_run
 
     try:
         args.config = args.config or default_config_path(os.environ)

@@ -15,8 +15,8 @@ from collections import deque
 import zenoh
 
 from navd.client import NavClient, NavFleet, NavUnavailable, endpoints
-from navd.config import Config
 from navd.schema import Advisory, Estimate, RangeDecision
+from navd.settings import Config
 
 
 def format_estimate(e: Estimate) -> str:

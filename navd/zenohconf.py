@@ -10,7 +10,7 @@ from __future__ import annotations
 import zenoh
 
 from navd import files
-from navd.config import ConfigError
+from navd.settings import ConfigError
 
 
 def read_zenoh_file(path: str, what: str = "zenoh.config_file") -> zenoh.Config:

@@ -8,10 +8,10 @@ import random
 import numpy as np
 
 from navd import geodesy
-from navd.config import NoiseConfig
 from navd.filter.bank import CalibrationBank, range_likelihood, uncalibrated_noise
 from navd.filter.common import RangeMeas, StateEstimate
 from navd.filter.ekf import RangeEKF
+from navd.settings import NoiseConfig
 
 R = math.radians
 LAT, LON = R(38.32), R(-76.39)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 
 from navd import geodesy
-from navd.config import Beacon, GateConfig
 from navd.filter.beacons import BeaconResolver
 from navd.hil.scenario import load_scenario, scenario_from_dict
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
 from navd.schema import RangeDecision
+from navd.settings import Beacon, GateConfig
 
 LAT0, LON0 = 38.32, -76.39
 
@@ -78,8 +78,8 @@ def test_a_jump_is_not_part_of_the_fit() -> None:
 
 def test_ranges_go_on_through_a_location_outage(tmp_path) -> None:
     """A simulated outage: its ranges are fused with the predicted boat, none refused for it."""
-    from navd.config import config_from_dict
     from navd.filter.navigator import Navigator
+    from navd.settings import config_from_dict
 
     base = load_scenario("claytor-2")
     data = {

@@ -5,11 +5,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from navd.config import config_from_dict
 from navd.hil.bound import mission_bound
 from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
+from navd.settings import config_from_dict
 
 
 def _bound(sc, seed: int = 1) -> float:

@@ -10,12 +10,12 @@ import pytest
 
 from navd.analysis.calibrate import CalibrationError, Stretch, fit, stretches
 from navd.cli import main
-from navd.config import ConfigError, config_from_dict
 from navd.filter import Navigator, compass
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
 from navd.records import Depth, Gps, Heading, Rpm
+from navd.settings import ConfigError, config_from_dict
 
 TRUE_DEV = [1.0, 4.0, -3.0, 1.5, -1.0]
 

@@ -22,10 +22,10 @@ import pytest
 from test_commands import Loop
 
 from navd.client import Gone, NavClient, NavUnavailable, NoAnswer, Stale
-from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
 from navd.hil.bench_vehicle import free_port
 from navd.schema import Estimate, from_dict
+from navd.settings import ZenohConfig
 
 FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}
 
@@ -38,7 +38,7 @@ def _estimate(t: float) -> Estimate:
 _CHILD = textwrap.dedent(
     """
     import asyncio, sys, time
-    from navd.config import ZenohConfig
+    from navd.settings import ZenohConfig
     from navd.daemon.publish import Publisher
     from navd.schema import Estimate
     loop = asyncio.new_event_loop()
@@ -139,8 +139,8 @@ def test_latest_is_never_old_nor_from_before_a_reset(navd) -> None:
 
 
 def test_an_accepted_reset_forgets_the_latest_estimate(tmp_path) -> None:
-    from navd.config import config_from_dict
     from navd.daemon.daemon import Daemon
+    from navd.settings import config_from_dict
 
     class Pub:
         forgotten = 0

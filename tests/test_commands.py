@@ -17,7 +17,6 @@ from typing import Any
 import pytest
 import zenoh
 
-from navd.config import ZenohConfig
 from navd.daemon.publish import (
     COMMAND_BURST,
     MAX_COMMAND_BYTES,
@@ -29,6 +28,7 @@ from navd.daemon.publish import (
     zenoh_config,
 )
 from navd.schema import Estimate
+from navd.settings import ZenohConfig
 
 
 def _free_port() -> int:
@@ -356,8 +356,8 @@ def test_a_key_given_twice_is_refused(vehicle: tuple[Loop, Publisher, zenoh.Sess
 
 def test_resets_are_spaced_so_that_they_cannot_stop_navigation(tmp_path) -> None:
     """Any reset at most once per 10 s, a forced one at most once a minute."""
-    from navd.config import config_from_dict
     from navd.daemon.daemon import Daemon
+    from navd.settings import config_from_dict
 
     now = [100.0]
     cfg = config_from_dict(

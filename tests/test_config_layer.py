@@ -11,13 +11,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from navd.config import (
-    ConfigError,
-    config_from_dict,
-    default_config_path,
-    load_config,
-    log_dir,
-)
+from navd.config import default_config_path, load_config, log_dir
+from navd.settings import ConfigError, config_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
 

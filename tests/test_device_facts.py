@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 from serialised import rows
 
-from navd.config import ConfigError, config_from_dict
 from navd.drivers import ahrs, castle, gps, keller, modem
 from navd.drivers.codec import DeviceError
 from navd.filter.gpsfix import fix_std as _gps_std
@@ -21,6 +20,7 @@ from navd.hil.emulators.castle import CastleEmulator
 from navd.hil.emulators.keller import KellerEmulator
 from navd.hil.emulators.modem import ModemEmulator
 from navd.records import Pressure, Rpm
+from navd.settings import ConfigError, config_from_dict
 
 
 def _answers(emu, request: bytes, wait_s: float = 0.05) -> list[bytes]:

@@ -11,10 +11,10 @@ from serialised import rows
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import _ne_error
-from navd.config import config_from_dict, deep_merge
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
 from navd.formats.mlog import MeasurementLog
 from navd.hil.sim_cli import crew_config
+from navd.settings import config_from_dict, deep_merge
 
 
 @pytest.mark.parametrize("att", [(0.0, 0.0, 0.3), (0.1, -0.2, 2.5), (-0.3, 0.25, -1.2)])

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from navd import geodesy
-from navd.config import NoiseConfig
 from navd.filter.common import RangeMeas
 from navd.filter.ekf import N_STATES, RangeEKF
+from navd.settings import NoiseConfig
 
 R = math.radians
 LAT, LON = R(38.32), R(-76.39)

@@ -116,7 +116,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_the_shipped_fleet_configs_are_valid() -> None:
     """config/fleet: the vehicle overlay passes check-config on the vehicle's config, and
     the shore router's file opens as a zenoh router (here on a loopback port)."""
-    from navd.config import check_for_run, load_config
+    from navd.config import load_config
+    from navd.settings import check_for_run
 
     cfg = load_config(ROOT / "config" / "navd.yaml", [ROOT / "config" / "fleet" / "vehicle.yaml"])
     check_for_run(cfg)

@@ -9,10 +9,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from serialised import rows
 
-from navd.config import ConfigError, config_from_dict
 from navd.filter import Navigator
 from navd.formats.mlog import Skipped, iter_lines
 from navd.records import Record
+from navd.settings import ConfigError, config_from_dict
 
 numbers = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),

@@ -14,9 +14,9 @@ import math
 from serialised import rows
 
 from navd import geodesy
-from navd.config import config_from_dict
 from navd.filter import Navigator
 from navd.records import Depth, Gps, Heading, Range, Rpm
+from navd.settings import config_from_dict
 
 LAT0, LON0 = 37.05, -80.66
 

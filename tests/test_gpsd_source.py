@@ -15,7 +15,6 @@ from pathlib import Path
 
 import pytest
 
-from navd.config import GpsDevice
 from navd.daemon.devices.gps import GpsReceiver
 from navd.daemon.health import Vitals
 from navd.drivers.gps import NmeaDecoder
@@ -23,6 +22,7 @@ from navd.drivers.gpsd import GpsdDecoder
 from navd.drivers.transport import SerialTransport
 from navd.hil.bench_vehicle import free_port
 from navd.records import Gps
+from navd.settings import GpsDevice
 
 CAPTURE = Path(__file__).parent / "data" / "gpsd" / "ch-4711.log"
 

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from navd.config import config_from_dict
 from navd.daemon.daemon import Daemon
 from navd.daemon.devices import Ahrs, ModemPinger
 from navd.drivers import ahrs, castle, keller, modem
@@ -19,6 +18,7 @@ from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
 from navd.records import Attitude, Depth, Gps, Pressure, Rpm
 from navd.schema import Estimate
+from navd.settings import config_from_dict
 
 
 class Clock:

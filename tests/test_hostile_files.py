@@ -20,12 +20,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from navd.analysis.replay import run_navigator
-from navd.config import ConfigError, config_from_dict, load_config
+from navd.config import load_config
 from navd.formats import jsonlines
 from navd.formats.mlog import HOLD_LINES, LogError, read_measurement_log, record_to_json
 from navd.hil.mutate import JUMPS, KINDS, mutate, set_t
 from navd.records import MAX_BEACONS, SetBeacon
 from navd.schema import split_outputs
+from navd.settings import ConfigError, config_from_dict
 
 HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'
 SECRET = "root:*:20228:0:99999:7:::\ndaemon:*:20228:0:99999:7:::\n"

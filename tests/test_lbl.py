@@ -10,10 +10,10 @@ from serialised import rows
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
-from navd.config import config_from_dict, deep_merge
 from navd.formats.mlog import MeasurementLog
 from navd.hil.sim_cli import crew_config
 from navd.records import TravelTime
+from navd.settings import config_from_dict, deep_merge
 
 
 def _run(name: str, seed: int, smooth: bool = False):

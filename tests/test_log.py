@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from navd.config import ConfigError, check_for_run, config_from_dict
 from navd.formats.log import RecordLog
 from navd.formats.mlog import read_measurement_log
 from navd.records import Gps, Heading
+from navd.settings import ConfigError, check_for_run, config_from_dict
 
 
 def test_rotates_by_size_and_every_file_is_a_measurement_log(tmp_path: Path) -> None:

@@ -14,7 +14,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from serialised import rows
 
-from navd.config import config_from_dict
 from navd.filter import Navigator
 from navd.records import (
     Attitude,
@@ -31,6 +30,7 @@ from navd.records import (
     Velocity,
 )
 from navd.schema import Estimate, Published
+from navd.settings import config_from_dict
 
 LAT0, LON0 = 37.05, -80.66
 D = 1e-4  # about 11 m of latitude

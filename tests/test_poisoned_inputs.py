@@ -14,13 +14,13 @@ from pathlib import Path
 import pytest
 from serialised import rows
 
-from navd.config import config_from_dict
 from navd.drivers import gps, keller, modem
 from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.mlog import MAX_LINE_CHARS, LogError, Skipped, iter_lines, read_measurement_log
 from navd.hil.emulators.modem import ModemEmulator
 from navd.records import Attitude, Gps, Pressure, Range, Rpm
+from navd.settings import config_from_dict
 
 LAT0, LON0 = 37.05, -80.66
 BEACON = (37.0510, -80.6600, 2.0)  # about 110 m north of the start

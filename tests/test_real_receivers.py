@@ -160,9 +160,9 @@ def test_a_fix_naming_no_satellite_and_no_hdop_is_not_full_weight():
 def test_what_the_receiver_says_beyond_fixes_is_counted_in_health():
     import time
 
-    from navd.config import GpsDevice
     from navd.daemon.devices.gps import GpsReceiver
     from navd.daemon.health import Vitals
+    from navd.settings import GpsDevice
 
     class Host:
         vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)

@@ -198,9 +198,9 @@ def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:
 
 def test_long_silence_restarts_at_the_next_fix() -> None:
     """A log with an hour-long hole gives no ticks inside the hole and re-initialises on GPS."""
-    from navd.config import config_from_dict
     from navd.filter import Navigator
     from navd.records import Gps, Heading
+    from navd.settings import config_from_dict
 
     nav = Navigator(config_from_dict({}))
     out = []
@@ -217,9 +217,9 @@ def test_long_silence_restarts_at_the_next_fix() -> None:
 
 def test_depth_from_pressure_zeroed_at_the_surface() -> None:
     """Pressure read while GPS has a fix is the surface; depth is measured from it."""
-    from navd.config import config_from_dict
     from navd.filter import Navigator
     from navd.records import Gps, Pressure
+    from navd.settings import config_from_dict
 
     nav = Navigator(config_from_dict({"site": {"water_density_kgm3": 1000.0}}))
     for k in range(10):  # a high-pressure day: 1.030 bar at the surface

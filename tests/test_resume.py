@@ -19,7 +19,6 @@ from conftest import mission
 from serialised import rows
 
 from navd.analysis.replay import run_navigator
-from navd.config import config_from_dict
 from navd.daemon.checkpoint import Checkpoints, config_digest
 from navd.filter import Navigator
 from navd.formats import jsonlines
@@ -27,6 +26,7 @@ from navd.formats.mlog import read_measurement_log, record_to_json
 from navd.hil.bench_vehicle import BenchVehicle, log_objects, replay_against_live
 from navd.hil.sim_cli import crew_config
 from navd.records import Resume
+from navd.settings import config_from_dict
 
 HEADER = '{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}\n'
 T_KILL, T_BACK = 60.0, 62.5  # mission seconds: submerged from 30 to 100 in the demo

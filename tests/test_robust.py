@@ -8,10 +8,10 @@ import random
 import pytest
 
 from navd import geodesy
-from navd.config import NoiseConfig
 from navd.filter.common import RangeMeas
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import DEGRADED, LOST, OK, Integrity, chi2_quantile
+from navd.settings import NoiseConfig
 
 R = math.radians
 LAT, LON = R(38.32), R(-76.39)

@@ -12,10 +12,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-from navd.config import ConfigError, config_from_dict, load_config
+from navd.config import load_config
 from navd.daemon.daemon import Daemon
 from navd.formats.log import RecordLog
 from navd.schema import Published
+from navd.settings import ConfigError, config_from_dict
 
 
 def _check_config(tmp_path: Path, text: str) -> subprocess.CompletedProcess:

@@ -21,10 +21,10 @@ import zenoh
 from test_commands import Loop
 
 from navd.client import NavClient, NavFleet
-from navd.config import ZenohConfig
 from navd.daemon.publish import Publisher
 from navd.hil.bench_vehicle import free_port
 from navd.schema import Estimate, Health, from_dict
+from navd.settings import ZenohConfig
 
 SHIPPED = Path(__file__).parent.parent / "config" / "zenoh.json5"
 _FIELDS = {"current_n": 0.0, "current_e": 0.0, "cov_ne": 0.0, "depth": 2.0, "mode": "submerged"}

@@ -10,11 +10,11 @@ from conftest import mission
 from navd import geodesy
 from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
-from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.filter.vlbl import NetRange, VirtualNet
 from navd.formats.mlog import MeasurementLog
 from navd.hil.sim_cli import crew_config
 from navd.records import Gps
+from navd.settings import ConfigError, config_from_dict, deep_merge
 
 
 def _run(name: str, records=None):

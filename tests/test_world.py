@@ -8,10 +8,10 @@ import pytest
 from conftest import mission
 from geographiclib.geodesic import Geodesic
 
-from navd.config import ConfigError, config_from_dict
 from navd.hil.scenario import list_scenarios, load_scenario
 from navd.hil.sim_cli import crew_config
 from navd.records import Gps, Range
+from navd.settings import ConfigError, config_from_dict
 
 G = Geodesic.WGS84
 

@@ -16,12 +16,12 @@ from typing import Any
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.surfacing import surfacings
-from navd.config import Config
 from navd.formats import jsonlines
 from navd.formats.mission import Mission
 from navd.formats.mlog import MeasurementLog, read_measurement_log
 from navd.records import Gps
 from navd.schema import Estimate, split_outputs
+from navd.settings import Config
 
 
 def _epoch(header: dict[str, Any]) -> float:

@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from navd.config import Config, ConfigError
 from navd.filter import Navigator
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped
 from navd.records import Record
 from navd.schema import Estimate, Output, to_dict
+from navd.settings import Config, ConfigError
 
 MAX_REPORTED_SKIPS = 20
 

@@ -14,8 +14,8 @@ import dataclasses
 from pathlib import Path
 
 from navd import files
-from navd.config import Config, ConfigError
 from navd.formats.jsonlines import loads
+from navd.settings import Config, ConfigError
 
 DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
 

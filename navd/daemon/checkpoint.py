@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from navd import files
-from navd.config import Config
 from navd.formats import jsonlines
+from navd.settings import Config
 
 FORMAT = "navd-checkpoint"
 VERSION = 1

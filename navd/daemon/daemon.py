@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, TypeVar
 
-from navd.config import Config, log_dir
+from navd.config import log_dir
 from navd.daemon.checkpoint import Checkpoints, checkpoint_dir, config_digest
 from navd.daemon.devices import (
     Device,
@@ -40,6 +40,7 @@ from navd.filter import Navigator
 from navd.formats.log import RecordLog
 from navd.records import MAX_BEACONS, Reset, Resume, SetBeacon, implausible
 from navd.schema import Estimate, Health, Output, RangeDecision
+from navd.settings import Config
 
 log = logging.getLogger("navd")
 LOG_FLUSH_S = 0.25  # kill -9 loses at most this much of the log

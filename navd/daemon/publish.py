@@ -30,10 +30,10 @@ from typing import Any
 
 import zenoh
 
-from navd.config import ZenohConfig
 from navd.formats import jsonlines
 from navd.records import BEACON_NAME, SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION, Published, to_dict
+from navd.settings import ZenohConfig
 from navd.validation import Invalid, build, text
 from navd.zenohconf import read_zenoh_file
 

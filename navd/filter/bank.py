@@ -34,10 +34,10 @@ from dataclasses import replace
 import numpy as np
 
 from navd import geodesy
-from navd.config import NoiseConfig
 from navd.filter.common import Corrections, GateDecision, RangeMeas, StateEstimate
 from navd.filter.ekf import RangeEKF
 from navd.filter.lsfix import Fix
+from navd.settings import NoiseConfig
 
 # The uncalibrated belief: the config's priors times _WIDEN (the Monte Carlo's wrong
 # priors are 3 to 10 times too small), capped at what a small AUV's sensors and a

@@ -15,7 +15,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from navd import geodesy
-from navd.config import Beacon, GateConfig
+from navd.settings import Beacon, GateConfig
 
 # GPS on the boat wanders by about this much between fixes (seed 000: 10 m 2D RMS).
 _POSITION_SLACK_M = 30.0

@@ -11,7 +11,7 @@ import math
 import statistics
 from collections import deque
 
-from navd.config import SiteConfig
+from navd.settings import SiteConfig
 
 SURFACE_SAMPLES = 50  # the median of the last this many surface pressures is the zero
 

@@ -45,7 +45,6 @@ from collections import deque
 import numpy as np
 
 from navd import geodesy
-from navd.config import NoiseConfig
 from navd.filter import reacquire
 from navd.filter.common import (
     Corrections,
@@ -57,6 +56,7 @@ from navd.filter.common import (
 )
 from navd.filter.integrity import chi2_quantile
 from navd.filter.lsfix import Fix
+from navd.settings import NoiseConfig
 
 N_STATES = 8
 _EYE = np.eye(N_STATES)

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 from navd import geodesy
-from navd.config import NavigationConfig, SiteConfig
 from navd.filter.common import StateEstimate
 from navd.records import Gps
+from navd.settings import NavigationConfig, SiteConfig
 
 FRESH_S = 2.0  # a fix this recent means "GPS available" (seed 000 Algorithm 2, line 13)
 NEW_STREAK_S = 5.0  # a gap longer than this means GPS was lost and re-acquired

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import math
 
-from navd.config import NavigationConfig
 from navd.filter import compass
 from navd.records import Attitude, Heading, Rpm
+from navd.settings import NavigationConfig
 
 
 class HeldInputs:

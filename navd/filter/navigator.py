@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from navd.acoustics import slant_range
-from navd.config import Beacon, Config
 from navd.filter import estimate
 from navd.filter.advisory import Observability
 from navd.filter.bank import CalibrationBank
@@ -62,6 +61,7 @@ from navd.records import (
     implausible,
 )
 from navd.schema import Advisory, Estimate, Output, RangeDecision, finite
+from navd.settings import Beacon, Config
 
 _TICK_SLACK_S = 1e-6  # far below a tick (0.01 s at 100 Hz), far above float rounding
 

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from navd import geodesy
-from navd.config import Config
 from navd.hil.world import SWING_MEMORY, SWING_STEP, Mission
 from navd.records import Gps
+from navd.settings import Config
 
 # A current that changes is a random walk with the variance it would build in this long
 # (how far back the ranges that measure the current reach).

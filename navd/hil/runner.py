@@ -28,7 +28,6 @@ from typing import Any, Literal
 import yaml
 
 from navd import files
-from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.formats import jsonlines
 from navd.hil.emulators.ahrs import AhrsEmulator
 from navd.hil.emulators.castle import CastleEmulator
@@ -40,6 +39,7 @@ from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
 from navd.records import Depth, Gps, Heading, Rpm
+from navd.settings import ConfigError, config_from_dict, deep_merge
 from navd.validation import Invalid, build, number
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from navd import files
-from navd.config import ConfigError, build
+from navd.settings import ConfigError, build
 
 
 def _f(default: float, **kw: float) -> Any:

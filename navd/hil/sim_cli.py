@@ -16,11 +16,11 @@ from typing import Any
 
 import yaml
 
-from navd.config import ConfigError, config_from_dict, deep_merge
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementWriter
 from navd.hil.scenario import Scenario, list_scenarios, load_scenario
 from navd.hil.world import Mission, simulate
+from navd.settings import ConfigError, config_from_dict, deep_merge
 
 
 def crew_config(sc: Scenario) -> dict[str, Any]:

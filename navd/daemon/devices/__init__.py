@@ -7,13 +7,13 @@ feeds their bytes in and ticks them; it knows no device by name.
 
 from __future__ import annotations
 
-from navd.config import Config
 from navd.daemon.devices.ahrs import Ahrs
 from navd.daemon.devices.base import Device, Host
 from navd.daemon.devices.gps import GpsReceiver
 from navd.daemon.devices.modem import ModemPinger
 from navd.daemon.devices.motor import MotorController
 from navd.daemon.devices.pressure import PressureSensor
+from navd.settings import Config
 
 __all__ = [
     "Ahrs",

@@ -6,10 +6,10 @@ from __future__ import annotations
 import asyncio
 import math
 
-from navd.config import AhrsDevice
 from navd.daemon.devices.base import Device, Host
 from navd.drivers import ahrs
 from navd.drivers.transport import SerialTransport
+from navd.settings import AhrsDevice
 
 PROBE_WAIT_S = 3.0  # a device asked who it is answers within this
 RESET_S = 10.0  # an open AHRS silent this long is soft-reset (at most this often)

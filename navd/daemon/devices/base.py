@@ -7,11 +7,11 @@ from collections import deque
 from collections.abc import Callable, Coroutine
 from typing import Any, Protocol
 
-from navd.config import SerialPortConfig
 from navd.daemon.health import RECENT_S, Vitals
 from navd.drivers.codec import DeviceError
 from navd.drivers.transport import SerialTransport
 from navd.schema import DeviceHealth
+from navd.settings import SerialPortConfig
 
 # a burst of corrupt data: this many bad frames within the window is said in health
 CORRUPT_FRAMES = 3

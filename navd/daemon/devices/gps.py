@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import datetime as dt
 
-from navd.config import GpsDevice
 from navd.daemon.devices.base import Device, Host
 from navd.drivers import gps, gpsd
 from navd.drivers.transport import SerialTransport
 from navd.records import Gps
+from navd.settings import GpsDevice
 
 NMEA_MAX_HZ = 10.0  # GGA and RMC at 5 Hz, the fastest a navigation receiver is set to
 

@@ -8,11 +8,11 @@ import asyncio
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.config import ModemDevice
 from navd.daemon.devices.base import Device, Host
 from navd.drivers import modem
 from navd.drivers.transport import SerialTransport
 from navd.records import Range
+from navd.settings import ModemDevice
 
 UNREADY_S = 10.0  # this long outside command mode is said in health
 

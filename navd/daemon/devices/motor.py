@@ -6,11 +6,11 @@ from __future__ import annotations
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.config import MotorDevice
 from navd.daemon.devices.base import Device, Host
 from navd.drivers import castle
 from navd.drivers.transport import SerialTransport
 from navd.records import Rpm
+from navd.settings import MotorDevice
 
 
 class MotorController(Device):

@@ -7,11 +7,11 @@ import logging
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.config import PressureDevice
 from navd.daemon.devices.base import Device, Host
 from navd.drivers import keller
 from navd.drivers.transport import SerialTransport
 from navd.records import Pressure
+from navd.settings import PressureDevice
 
 
 class PressureSensor(Device):
