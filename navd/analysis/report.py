@@ -8,6 +8,8 @@ are drawn on a local metric grid (east/north metres from the first estimate).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +21,7 @@ from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
 from navd.formats.outputs import read_outputs
 from navd.records import Gps
-from navd.schema import split_outputs
+from navd.schema import Estimate, RangeDecision, split_outputs
 
 
 def _read(path: str | Path) -> list[dict[str, Any]]:
@@ -69,53 +71,83 @@ class _Grid:
         return e, n
 
 
+@dataclass(frozen=True, slots=True)
+class ReportInput:
+    """What a report is drawn from: the outputs, and optionally GPS fixes and the truth."""
+
+    estimates: list[Estimate]
+    decisions: list[RangeDecision]
+    fixes: list[Gps]
+    truth: list[dict[str, Any]]
+    truth_name: str = ""  # the truth file, for saying it does not match
+
+
+def read_input(
+    output: str | Path, truth: str | Path | None = None, measurements: str | Path | None = None
+) -> ReportInput:
+    est, rng = split_outputs(read_outputs(output))
+    if not est:
+        raise LogError(f"{output}: no estimates to report (not a replay output or daemon log?)")
+    fixes: list[Gps] = []
+    if measurements:
+        fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
+    tru = _read_truth(truth) if truth else []
+    return ReportInput(est, rng, fixes, tru, str(truth or ""))
+
+
 def make_report(
     output: str | Path,
     out_dir: str | Path,
     truth: str | Path | None = None,
     measurements: str | Path | None = None,
 ) -> str:
+    """The figures (track, ranges, current and uncertainty) and summary.txt; returns the
+    summary."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    est, rng = split_outputs(read_outputs(output))
-    if not est:
-        raise LogError(f"{output}: no estimates to report (not a replay output or daemon log?)")
+    r = read_input(output, truth, measurements)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    grid = _Grid(est[0].lat, est[0].lon)
-    fixes: list[Gps] = []
-    if measurements:
-        fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
-    tru = _read_truth(truth) if truth else []
+    figures = [out / "track.png", out / "ranges.png", out / "current_uncertainty.png"]
+    for draw, path in zip((_track, _ranges, _current), figures, strict=True):
+        fig = draw(plt, r)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    lines = summary(r)
+    lines.append(f"figures: {', '.join(str(f) for f in figures)}")
+    text = "\n".join(lines)
+    (out / "summary.txt").write_text(text + "\n", encoding="utf-8")
+    return text
 
-    # -- track ---------------------------------------------------------------------
+
+def _track(plt: Any, r: ReportInput) -> Any:
+    est, rng, fixes, tru = r.estimates, r.decisions, r.fixes, r.truth
+    grid = _Grid(est[0].lat, est[0].lon)
     fig, ax = plt.subplots(figsize=(8, 8))
-    e, n = zip(*(grid.en(r.lat, r.lon) for r in est), strict=True)
+    e, n = zip(*(grid.en(x.lat, x.lon) for x in est), strict=True)
     if tru:
         te, tn = zip(*(grid.en(s["lat"], s["lon"]) for s in tru[::10]), strict=True)
         ax.plot(te, tn, "k--", lw=1, label="truth")
-    dr = [(r.dr_lat, r.dr_lon) for r in est if r.dr_lat is not None and r.dr_lon is not None]
+    dr = [(x.dr_lat, x.dr_lon) for x in est if x.dr_lat is not None and x.dr_lon is not None]
     if dr:
         de, dn = zip(*(grid.en(lat, lon) for lat, lon in dr), strict=True)
         ax.plot(de, dn, color="magenta", lw=1, label="dead reckoning")
     ax.plot(e, n, color="green", lw=1.5, label="estimate")
-    acc_t = {round(r.t, 1) for r in rng if r.accepted}
-    acc = [grid.en(r.lat, r.lon) for r in est if round(r.t, 1) in acc_t]
+    acc_t = {round(d.t, 1) for d in rng if d.accepted}
+    acc = [grid.en(x.lat, x.lon) for x in est if round(x.t, 1) in acc_t]
     if acc:
         ax.plot(*zip(*acc, strict=True), "gx", ms=6, label="range accepted")
-    if fixes:
-        ge, gn = zip(
-            *(grid.en(f.lat, f.lon) for f in fixes if f.lat is not None and f.lon is not None),
-            strict=True,
-        )
-        ax.plot(ge, gn, "r.", ms=3, label="GPS fixes")
+    gps = [grid.en(f.lat, f.lon) for f in fixes if f.lat is not None and f.lon is not None]
+    if gps:
+        ax.plot(*zip(*gps, strict=True), "r.", ms=3, label="GPS fixes")
     bea = [
-        grid.en(r.beacon_lat, r.beacon_lon)
-        for r in rng
-        if r.beacon_lat is not None and r.beacon_lon is not None
+        grid.en(d.beacon_lat, d.beacon_lon)
+        for d in rng
+        if d.beacon_lat is not None and d.beacon_lon is not None
     ]
     if bea:
         ax.plot(*zip(*bea, strict=True), "c^", ms=4, label="beacon (as reported)")
@@ -127,25 +159,26 @@ def make_report(
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     ax.set_title("Track")
-    fig.tight_layout()
-    fig.savefig(out / "track.png", dpi=110)
-    plt.close(fig)
+    return fig
 
-    # -- ranges ----------------------------------------------------------------------
-    # Time as minutes of the mission: a daemon's log counts its monotonic clock, which
-    # means nothing to a reader; its estimates carry UTC, which names the start.
+
+def minutes_axis(est: list[Estimate]) -> tuple[Callable[[float], float], str]:
+    """Time as minutes of the mission, and its label: a daemon's log counts its monotonic
+    clock, which means nothing to a reader; its estimates carry UTC, which names the start."""
     t0 = est[0].t
     start = est[0].t_utc
-    t_label = f"minutes since {start}" if start else f"minutes since t = {t0:.0f} s"
+    label = f"minutes since {start}" if start else f"minutes since t = {t0:.0f} s"
+    return (lambda t: (t - t0) / 60.0), label
 
-    def minutes(t: float) -> float:
-        return (t - t0) / 60.0
 
+def _ranges(plt: Any, r: ReportInput) -> Any:
+    minutes, t_label = minutes_axis(r.estimates)
+    rng = r.decisions
     fig, ax = plt.subplots(figsize=(9, 4))
-    a = [(minutes(r.t), r.range_m) for r in rng if r.accepted and r.range_m is not None]
-    rj = [(minutes(r.t), r.range_m) for r in rng if not r.accepted and r.range_m is not None]
+    a = [(minutes(d.t), d.range_m) for d in rng if d.accepted and d.range_m is not None]
+    rj = [(minutes(d.t), d.range_m) for d in rng if not d.accepted and d.range_m is not None]
     # refused before a range was computed (no beacon position, say): counted, not plotted
-    unplotted = sum(1 for r in rng if not r.accepted and r.range_m is None)
+    unplotted = sum(1 for d in rng if not d.accepted and d.range_m is None)
     if a:
         ax.plot(*zip(*a, strict=True), "bx", label=f"accepted ({len(a)})")
     if rj or unplotted:
@@ -157,15 +190,27 @@ def make_report(
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title("Ranges to the beacon")
-    fig.tight_layout()
-    fig.savefig(out / "ranges.png", dpi=110)
-    plt.close(fig)
+    return fig
 
-    # -- current and uncertainty ---------------------------------------------------
-    t = [minutes(r.t) for r in est]
+
+def errors_against_truth(r: ReportInput) -> list[tuple[float, float]]:
+    """(t, horizontal error in metres) of every estimate within the truth's samples."""
+    truth_at = TruthAt(r.truth)
+    err = []
+    for x in r.estimates:
+        s = truth_at(x.t)
+        if s is not None:
+            err.append((x.t, math.hypot(*_Grid(s["lat"], s["lon"]).en(x.lat, x.lon))))
+    return err
+
+
+def _current(plt: Any, r: ReportInput) -> Any:
+    est, tru = r.estimates, r.truth
+    minutes, t_label = minutes_axis(est)
+    t = [minutes(x.t) for x in est]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax1.plot(t, [r.current_n for r in est], label="north")
-    ax1.plot(t, [r.current_e for r in est], label="east")
+    ax1.plot(t, [x.current_n for x in est], label="north")
+    ax1.plot(t, [x.current_e for x in est], label="east")
     if tru:
         tt = [minutes(s["t"]) for s in tru]
         ax1.plot(tt, [s["current_n"] for s in tru], "C0--", lw=0.8)
@@ -173,31 +218,26 @@ def make_report(
     ax1.set_ylabel("current (m/s)")
     ax1.legend(fontsize=8)
     ax1.grid(True, alpha=0.3)
-    ax2.plot(t, [r.std_n for r in est], label="1-sigma north")
-    ax2.plot(t, [r.std_e for r in est], label="1-sigma east")
-    if tru:
-        truth_at = TruthAt(tru)
-        err = []
-        for r in est:
-            s = truth_at(r.t)
-            if s is not None:
-                g = _Grid(s["lat"], s["lon"])
-                err.append((minutes(r.t), math.hypot(*g.en(r.lat, r.lon))))
-        if err:
-            ax2.plot(*zip(*err, strict=True), "k", lw=0.8, label="error vs truth")
+    ax2.plot(t, [x.std_n for x in est], label="1-sigma north")
+    ax2.plot(t, [x.std_e for x in est], label="1-sigma east")
+    err = errors_against_truth(r) if tru else []
+    if err:
+        ax2.plot([minutes(t) for t, _ in err], [e for _, e in err], "k", lw=0.8,
+                 label="error vs truth")  # fmt: skip
     ax2.set_xlabel(t_label)
     ax2.set_ylabel("metres")
     ax2.legend(fontsize=8)
     ax2.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "current_uncertainty.png", dpi=110)
-    plt.close(fig)
+    return fig
 
-    # -- summary -------------------------------------------------------------------
+
+def summary(r: ReportInput) -> list[str]:
+    """The summary's lines (summary.txt, less the figures' names)."""
+    est, rng = r.estimates, r.decisions
     lines = [
         f"estimates: {len(est)} over {est[-1].t - est[0].t:.0f} s",
-        f"ranges: {len(rng)} reached the filter, {sum(r.accepted for r in rng)} accepted, "
-        f"{sum(not r.accepted for r in rng)} rejected",
+        f"ranges: {len(rng)} reached the filter, {sum(d.accepted for d in rng)} accepted, "
+        f"{sum(not d.accepted for d in rng)} rejected",
     ]
     reasons: dict[str, int] = {}
     for d in rng:
@@ -207,42 +247,47 @@ def make_report(
         lines.append(
             "rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
         )
-    surf = surfacing_error_gps(est, fixes)
+    surf = surfacing_error_gps(est, r.fixes)
     if surf is not None:
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
-    sub = {round(e.t, 3) for e in est if e.mode == "submerged"}
-    advice = [a for a in replayed(est, rng, RANGE_STD_M) if round(a.t, 3) in sub]
-    if advice:
-        weak = [a for a in advice if a.verdict == "weak_cross_range"]
-        none = sum(1 for a in advice if a.verdict == "no_ranges")
-        line = (
-            f"observability while submerged: weak across the line of sight "
-            f"{len(weak) / len(advice):.0%} of the time, no ranges {none / len(advice):.0%}"
-        )
-        if weak and weak[-1].suggest_heading_deg is not None:
-            line += f" (last advice: steer {weak[-1].suggest_heading_deg:.0f} deg)"
-        lines.append(line)
-    sc = score([*est, *rng], tru) if tru else None
-    if sc is not None and math.isfinite(sc.rms_m):
-        lines.append(
-            f"against the truth, submerged: RMS {sc.rms_m:.1f} m, at surfacing "
-            f"{sc.surfacing_m:.1f} m, truth inside the 95 % ellipse {sc.inside95:.0%}"
-        )
-    elif sc is not None:
-        lines.append(
-            f"against the truth: no submerged estimate falls within {truth}'s time steps "
-            "(the same mission, on the same time base?)"
-        )
+    lines += _observability(r)
+    lines += _against_truth(r)
     last = est[-1]
     lines.append(
         f"final estimate: {last.lat:.7f}, {last.lon:.7f}; current "
         f"{last.current_n:+.3f} N {last.current_e:+.3f} E m/s"
     )
-    lines.append(
-        f"figures: {out / 'track.png'}, {out / 'ranges.png'}, {out / 'current_uncertainty.png'}"
+    return lines
+
+
+def _observability(r: ReportInput) -> list[str]:
+    sub = {round(e.t, 3) for e in r.estimates if e.mode == "submerged"}
+    advice = [a for a in replayed(r.estimates, r.decisions, RANGE_STD_M) if round(a.t, 3) in sub]
+    if not advice:
+        return []
+    weak = [a for a in advice if a.verdict == "weak_cross_range"]
+    none = sum(1 for a in advice if a.verdict == "no_ranges")
+    line = (
+        f"observability while submerged: weak across the line of sight "
+        f"{len(weak) / len(advice):.0%} of the time, no ranges {none / len(advice):.0%}"
     )
-    text = "\n".join(lines)
-    (out / "summary.txt").write_text(text + "\n", encoding="utf-8")
-    return text
+    if weak and weak[-1].suggest_heading_deg is not None:
+        line += f" (last advice: steer {weak[-1].suggest_heading_deg:.0f} deg)"
+    return [line]
+
+
+def _against_truth(r: ReportInput) -> list[str]:
+    if not r.truth:
+        return []
+    sc = score([*r.estimates, *r.decisions], r.truth)
+    if math.isfinite(sc.rms_m):
+        return [
+            f"against the truth, submerged: RMS {sc.rms_m:.1f} m, at surfacing "
+            f"{sc.surfacing_m:.1f} m, truth inside the 95 % ellipse {sc.inside95:.0%}"
+        ]
+    return [
+        f"against the truth: no submerged estimate falls within {r.truth_name}'s time steps "
+        "(the same mission, on the same time base?)"
+    ]

@@ -200,7 +200,7 @@ class Daemon:
             if self.pub is not None:
                 self.pub.forget_latest()
         elif name == "beacon":
-            known = self.nav.beacons.beacons
+            known = self.nav.ranging.beacons.beacons
             if body["name"] not in known and len(known) >= MAX_BEACONS:
                 return f"at most {MAX_BEACONS} beacons"
             self.feed(SetBeacon(t, body["name"], body["lat"], body["lon"], body.get("depth", 0.0)))

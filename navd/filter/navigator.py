@@ -13,20 +13,14 @@ import math
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import replace
-from functools import partial
 from typing import Any
 
 import numpy as np
 
-from navd.acoustics import slant_range
 from navd.filter import estimate
-from navd.filter.advisory import Observability
 from navd.filter.bank import CalibrationBank
-from navd.filter.beacons import BeaconFix, BeaconResolver
 from navd.filter.common import (
-    GateDecision,
     NavFilter,
-    RangeMeas,
     principal_axes,
 )
 from navd.filter.deadreckoning import DeadReckoner
@@ -36,9 +30,9 @@ from navd.filter.ekf import RangeEKF
 from navd.filter.gpsfix import DEPTH_TRUST_S, GpsFixes, GpsGate
 from navd.filter.inputs import HeldInputs
 from navd.filter.integrity import Integrity
+from navd.filter.ranging import Ranging
 from navd.filter.smoothing import Smoothing
 from navd.filter.thesis import ThesisEKF
-from navd.filter.vlbl import NetRange, VirtualNet
 from navd.filter.vlblmode import VlblMode
 from navd.records import (
     BEACON_NAME,
@@ -114,16 +108,13 @@ class Navigator:
             math.radians(nav.magnetic_declination_deg),
         )
         self._dvl_seen = False
-        self.net = VirtualNet()
-        self.beacons = BeaconResolver(cfg.beacons, nav.gate)
-        self.sound = nav.sound_speed.model_obj()
+        self.ranging = Ranging(cfg, self.counters)
         self.tick_dt = 1.0 / nav.rate_hz
         ig = nav.integrity
         self.integrity = Integrity(
             ig.window, ig.degraded_std_m, ig.lost_std_m, ig.degraded_refused, ig.lost_refused
         )
-        self.observability = Observability()
-        self.warnings: list[str] = list(self.sound.warnings())
+        self.warnings: list[str] = list(self.ranging.sound.warnings())
 
         self._tick_k: int | None = None
         self._t_filter: float | None = None
@@ -189,7 +180,7 @@ class Navigator:
         if self.smoothing is not None:
             self.smoothing.start(self.filter)
         self.integrity.clear()
-        self.observability.clear()
+        self.ranging.observability.clear()
         self.dr = DeadReckoner()
         self._tick_k = None
         self._t_filter = None
@@ -205,7 +196,7 @@ class Navigator:
         Only the position changes: the configured turnaround time and position error
         of that beacon still hold.
         """
-        table = self.beacons.beacons
+        table = self.ranging.beacons.beacons
         if not BEACON_NAME.fullmatch(rec.beacon):
             self.counters["beacon_commands_refused_name"] += 1
             return
@@ -308,7 +299,7 @@ class Navigator:
         if self._t_filter is not None and t > self._t_filter:
             # the virtual net's relative track: needs no absolute position
             heading, speed = self.inputs.heading_speed()
-            self.net.move(speed * (t - self._t_filter), heading)
+            self.ranging.net.move(speed * (t - self._t_filter), heading)
         if self._t_filter is None or not self.filter.initialised:
             self._t_filter = t
             return
@@ -385,102 +376,21 @@ class Navigator:
         self.counters["gps_fused"] += 1
 
     def _on_range(self, rec: Range | TravelTime) -> RangeDecision:
-        fix, why = self.beacons.resolve(
-            rec.t, rec.beacon, rec.beacon_lat, rec.beacon_lon, rec.beacon_depth
+        return self.ranging.decide(
+            rec,
+            self.filter,
+            self.integrity,
+            self.dr,
+            depth_m=self.depth.m,
+            surface_alt=self.surface_altitude,
+            gps_fresh=self.gps.fresh(rec.t),
+            gps_seen=self.gps.t_last is not None,
         )
-        if fix is None:
-            return self._refused(RangeDecision(rec.t, rec.t_ping, rec.beacon, reason=why))
-        if fix.predicted_s > 0.0:
-            self.counters["ranges_beacon_predicted"] += 1
-        c_water = self.sound.at(0.5 * (self.depth.m + fix.depth))
-        rng = slant_range(
-            rec, c_water, self.sound.modem_mps, fix.turnaround_s, self.filter.ranges_as_reported
-        )
-        placed = partial(
-            RangeDecision,
-            rec.t,
-            rec.t_ping,
-            rec.beacon,
-            beacon_lat=math.degrees(fix.lat),
-            beacon_lon=math.degrees(fix.lon),
-            beacon_depth=fix.depth,
-            beacon_predicted_s=fix.predicted_s if fix.predicted_s > 0.0 else None,
-            range_m=rng,
-        )
-        if not 0.0 < rng <= self.nav.gate.max_range_m:
-            return self._refused(placed(reason="range_out_of_bounds"))
-        self._to_net(rec.t, fix, rng)
-        if not self.filter.initialised:
-            return self._refused(placed(reason="not_initialised"))
-        if self.filter.ranges_only_without_gps and self.gps.fresh(rec.t):
-            return self._refused(placed(reason="gps_available"))
-        h = self.surface_altitude
-        meas = RangeMeas(
-            t=rec.t,
-            t_ping=rec.t_ping,
-            range_m=rng,
-            beacon=rec.beacon,
-            beacon_lat=fix.lat,
-            beacon_lon=fix.lon,
-            beacon_hd=h - fix.depth,
-            vehicle_hd=h - self.depth.m,
-            # a predicted beacon's own error is range noise: the offset states model
-            # the error of its reports, not of the prediction
-            std_m=math.hypot(self.nav.noise.range_std_m, fix.predicted_std_m),
-            beacon_position_std_m=fix.position_std_m,
-            beacon_position_corr_s=fix.position_corr_s,
-        )
-        d: GateDecision = self.filter.range_update(meas)
-        self.integrity.range(d.accepted, self.filter.last_nis)
-        self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
-        if d.accepted:
-            est = self.filter.estimate()
-            self.observability.add(
-                rec.t,
-                math.degrees(est.lat),
-                math.degrees(est.lon),
-                math.degrees(fix.lat),
-                math.degrees(fix.lon),
-                math.hypot(meas.std_m, fix.position_std_m),
-            )
-        else:
-            self.counters[f"range_{d.reason}"] += 1
-        return placed(
-            accepted=d.accepted,
-            residual_m=d.residual_m if math.isfinite(d.residual_m) else None,
-            gate_m=d.gate_m if math.isfinite(d.gate_m) else None,  # None: no gate (vlbl)
-            reason=d.reason,
-        )
-
-    def _refused(self, decision: RangeDecision) -> RangeDecision:
-        """A range that never reached the filter's gate, counted by why."""
-        self.counters[f"range_{decision.reason}"] += 1
-        self.counters["ranges_rejected"] += 1
-        return decision
-
-    def _to_net(self, t: float, fix: BeaconFix, rng: float) -> None:
-        """Every usable range also goes to the virtual LBL net (seed 001 / 004 fix)."""
-        std = math.hypot(self.nav.noise.range_std_m, fix.position_std_m, fix.predicted_std_m)
-        h = self.surface_altitude
-        r = NetRange(t, fix.lat, fix.lon, h - fix.depth, rng, std, self.net.rel_n, self.net.rel_e)
-        guess = None
-        if self.filter.initialised:
-            est = self.filter.estimate()
-            guess = (est.lat, est.lon)
-        lsfix = self.net.add(r, h - self.depth.m, guess)
-        if lsfix is not None and self.filter.initialised:
-            self.filter.apply_fix(lsfix)
-        if lsfix is not None and not self.filter.initialised and self.gps.t_last is None:
-            # no GPS yet: the acoustic fix initialises the filter (seed 004, section III)
-            std0 = math.sqrt(max(0.0, float(np.linalg.eigvalsh(lsfix.cov_ne)[-1])))
-            self.filter.initialise(lsfix.lat, lsfix.lon, max(std0, 1.0), t)
-            self.dr.reset(lsfix.lat, lsfix.lon)
-            self.counters["initialised_from_acoustic_fix"] += 1
 
     # -- outputs -----------------------------------------------------------------------
     def advisory(self, t: float, heading_deg: float | None) -> Advisory:
         """How well the recent ranges fix each direction (navd/filter/advisory.py)."""
-        return self.observability.assess(t, heading_deg)
+        return self.ranging.observability.assess(t, heading_deg)
 
     def input_ages(self, t: float) -> dict[str, float | None]:
         """Seconds since the last heading, RPM and depth (None: never seen)."""
@@ -517,7 +427,7 @@ class Navigator:
             heading=heading,
             speed=speed,
             dr=self.dr,
-            net=self.net,
+            net=self.ranging.net,
             dvl=self.dvl if self._dvl_seen else None,
             stale=stale,
         )

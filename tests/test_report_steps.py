@@ -1,0 +1,57 @@
+"""The report's steps apart from its figures: what the summary says, without matplotlib."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from navd.analysis.report import ReportInput, errors_against_truth, minutes_axis, summary
+from navd.schema import Estimate, RangeDecision
+
+
+def _est(t: float, mode: str = "submerged", **kw: object) -> Estimate:
+    lat = 37.0 + 1e-5 * t
+    return Estimate(t, lat, -80.6, 0.1, 0.0, 3.0, 3.0, 0.0, 2.0, mode, "ok", **kw)  # type: ignore[arg-type]
+
+
+def _mission() -> ReportInput:
+    est = [_est(0.0, "surface", t_utc="2026-06-01T12:00:00.000+00:00"), _est(60.0), _est(120.0)]
+    dec = [
+        RangeDecision(60.0, 59.0, "udb", accepted=True, reason="ok", range_m=500.0),
+        RangeDecision(90.0, 89.0, "udb", reason="gate", range_m=900.0),
+        RangeDecision(100.0, 99.0, "udb", reason="no_beacon_position"),
+    ]
+    truth = [{"t": t, "lat": 37.0, "lon": -80.6, "depth": 2.0, "current_n": 0.0,
+              "current_e": 0.0} for t in (0.0, 60.0, 120.0)]  # fmt: skip
+    return ReportInput(est, dec, [], truth, "truth.jsonl")
+
+
+def test_the_summary_counts_what_the_filter_did() -> None:
+    lines = summary(_mission())
+    assert lines[0] == "estimates: 3 over 120 s"
+    assert lines[1] == "ranges: 3 reached the filter, 1 accepted, 2 rejected"
+    assert lines[2] == "rejected by reason: gate 1, no_beacon_position 1"
+    assert any(x.startswith("against the truth, submerged: RMS") for x in lines)
+    assert lines[-1].startswith("final estimate: 37.0012000, -80.6000000")
+
+
+def test_time_is_minutes_since_the_first_estimates_utc() -> None:
+    minutes, label = minutes_axis(_mission().estimates)
+    assert minutes(120.0) == 2.0 and label == "minutes since 2026-06-01T12:00:00.000+00:00"
+
+
+def test_the_error_against_the_truth_is_in_metres() -> None:
+    err = errors_against_truth(_mission())
+    # 1e-5 degree of latitude a second: about 66.7 m after a minute
+    assert [round(e) for _, e in err] == [0, 67, 133]
+
+
+def test_the_summary_needs_no_matplotlib() -> None:
+    code = (
+        "import sys; sys.modules['matplotlib'] = None; "
+        "from tests.test_report_steps import _mission; "
+        "from navd.analysis.report import summary; print(len(summary(_mission())))"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert int(r.stdout) >= 5
