@@ -103,6 +103,7 @@ def check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float
 
 
 def convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
+    """``value`` as the schema type ``tp``, or a one-line :class:`Invalid` naming ``path``."""
     origin = typing.get_origin(tp)
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
@@ -115,36 +116,48 @@ def convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
             _fail(path, f"must be one of {', '.join(map(str, choices))}, got {show(value)}")
         return value
     if origin is list:
-        if not isinstance(value, list):
-            _fail(path, f"expected a list, got {type(value).__name__}")
-        (it,) = typing.get_args(tp)
-        return [convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
+        return _list(value, tp, meta, path)
     if origin is dict:
-        if not isinstance(value, dict):
-            _fail(path, f"expected a mapping, got {type(value).__name__}")
-        _, vt = typing.get_args(tp)
-        out = {}
-        for k, v in value.items():
-            if not isinstance(k, str) or not k or not k.isprintable():
-                _fail(path, f"names must be non-empty printable strings, got {show(k)}")
-            out[k] = convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
-        return out
+        return _mapping(value, tp, path)
     if isinstance(tp, type) and is_dataclass(tp):
         return build(tp, value, path)
     if tp in (float, int):
         return check_number(value, tp, meta, path)
     if tp is str:
-        if not isinstance(value, str):
-            _fail(path, f"expected a string, got {type(value).__name__} {show(value)}")
-        pattern = meta.get("pattern")
-        if pattern is not None and not pattern.fullmatch(value):
-            _fail(path, f"must be {meta.get('what', pattern.pattern)}, got {show(value)}")
-        return value
+        return _text(value, meta, path)
     if tp is bool:
         if not isinstance(value, bool):
             _fail(path, f"expected true or false, got {show(value)}")
         return value
     raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
+
+
+def _list(value: Any, tp: Any, meta: typing.Mapping, path: str) -> list[Any]:
+    if not isinstance(value, list):
+        _fail(path, f"expected a list, got {type(value).__name__}")
+    (it,) = typing.get_args(tp)
+    return [convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
+
+
+def _mapping(value: Any, tp: Any, path: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        _fail(path, f"expected a mapping, got {type(value).__name__}")
+    _, vt = typing.get_args(tp)
+    out = {}
+    for k, v in value.items():
+        if not isinstance(k, str) or not k or not k.isprintable():
+            _fail(path, f"names must be non-empty printable strings, got {show(k)}")
+        out[k] = convert(v if v is not None else {}, vt, {}, f"{path}.{k}")
+    return out
+
+
+def _text(value: Any, meta: typing.Mapping, path: str) -> str:
+    if not isinstance(value, str):
+        _fail(path, f"expected a string, got {type(value).__name__} {show(value)}")
+    pattern = meta.get("pattern")
+    if pattern is not None and not pattern.fullmatch(value):
+        _fail(path, f"must be {meta.get('what', pattern.pattern)}, got {show(value)}")
+    return value
 
 
 def build(cls: type, data: Any, path: str = "") -> Any:

@@ -15,6 +15,7 @@ that exporting never mixes with a live server's channels.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +69,24 @@ def _events(m: Mission) -> list[tuple[float, str, str]]:
     return sorted(out, key=lambda x: x[0])
 
 
+def _located(
+    m: Mission,
+) -> Iterator[tuple[str, float, float, float, float, Estimate | None]]:
+    """(topic, t, lat, lon, depth, the estimate for its covariance) of every position."""
+    for e in m.estimates:
+        yield "/nav/estimate", e.t, e.lat, e.lon, e.depth, e
+        if e.dr_lat is not None and e.dr_lon is not None:
+            yield "/nav/dead_reckoning", e.t, e.dr_lat, e.dr_lon, e.depth, None
+    for e in m.smoothed:
+        yield "/nav/smoothed", e.t, e.lat, e.lon, e.depth, e
+    for g in m.fixes:
+        if g.lat is not None and g.lon is not None:
+            yield "/nav/gps", g.t, g.lat, g.lon, 0.0, None
+    for d in m.decisions:
+        if d.beacon_lat is not None and d.beacon_lon is not None:
+            yield "/nav/beacon", d.t, d.beacon_lat, d.beacon_lon, d.beacon_depth or 0.0, None
+
+
 def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
     """Write the mission; returns the messages written per topic."""
     import foxglove
@@ -90,18 +109,8 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
             ch.log(location_fix(lat, lon, depth, e, t_ns), log_time=t_ns)
             counts[topic] = counts.get(topic, 0) + 1
 
-        for e in m.estimates:
-            fix("/nav/estimate", e.t, e.lat, e.lon, e.depth, e)
-            if e.dr_lat is not None and e.dr_lon is not None:
-                fix("/nav/dead_reckoning", e.t, e.dr_lat, e.dr_lon, e.depth)
-        for e in m.smoothed:
-            fix("/nav/smoothed", e.t, e.lat, e.lon, e.depth, e)
-        for g in m.fixes:
-            if g.lat is not None and g.lon is not None:
-                fix("/nav/gps", g.t, g.lat, g.lon, 0.0)
-        for d in m.decisions:
-            if d.beacon_lat is not None and d.beacon_lon is not None:
-                fix("/nav/beacon", d.t, d.beacon_lat, d.beacon_lon, d.beacon_depth or 0.0)
+        for topic, t, lat, lon, depth, e in _located(m):
+            fix(topic, t, lat, lon, depth, e)
 
         json_channels: dict[str, Any] = {}
 

@@ -72,6 +72,42 @@ def _truth_current_rate(m: Mission, i: int, j: int) -> float:
     return 0.5 * (((b.current_n - a.current_n) / dt) ** 2 + ((b.current_e - a.current_e) / dt) ** 2)
 
 
+def _prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarray:
+    """Each calibration state's std is the truth's own size (an estimator that knows how
+    large the error is, not what it is), with a floor; no position until the first fix."""
+    sc, s, tr = m.scenario, m.scenario.sensors, m.truth
+    c_true = math.hypot(tr[0].current_n, tr[0].current_e) / math.sqrt(2.0)
+    bias_true = math.radians(abs(s.compass_bias_deg) + sum(abs(x) for x in s.compass_deviation_deg))
+    scale_true = abs(cfg.navigation.speed.rpm_per_mps / s.rpm_per_mps - 1.0)
+    n_states = 6 + 2 * len(col)
+    P = np.zeros((n_states, n_states))
+    P[0, 0] = P[1, 1] = 1e8
+    P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
+    P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
+    P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
+    fixed = sc.acoustics.transponders
+    for name, k in col.items():
+        std = next((tp.survey_std_m for tp in fixed if tp.name == name), sc.boat.gps_std_m)
+        P[k, k] = P[k + 1, k + 1] = max(std, 1e-3) ** 2
+    return P
+
+
+def _measurements(m: Mission, col: dict[str, int]) -> list[tuple[float, str, float | str]]:
+    """In time order: ("gps", t, std) and ("range", t, beacon) for the clean replies."""
+    s = m.scenario.sensors
+    meas: list[tuple[float, str, float | str]] = []
+    for rec in m.records:
+        if isinstance(rec, Gps) and rec.lat is not None:
+            hdop = rec.hdop or 1.0
+            warm = max(0.0, (hdop - 1.0) / 3.0)
+            meas.append((rec.t, "gps", s.gps_std_m + warm * s.gps_warmup_std_m))
+    for t, name in m.channel.clean:
+        if name in col:
+            meas.append((t, "range", name))
+    meas.sort(key=lambda x: x[0])
+    return meas
+
+
 def mission_bound(m: Mission, cfg: Config) -> Bound:
     sc = m.scenario
     s = sc.sensors
@@ -89,21 +125,8 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
     n_states = 6 + 2 * len(names)
     col = {name: 6 + 2 * k for k, name in enumerate(names)}
 
-    # priors: each calibration state's std is the truth's own size (an estimator that
-    # knows how large the error is, not what it is), with a floor
-    c_true = math.hypot(tr[0].current_n, tr[0].current_e) / math.sqrt(2.0)
-    bias_true = math.radians(abs(s.compass_bias_deg) + sum(abs(x) for x in s.compass_deviation_deg))
-    scale_true = abs(cfg.navigation.speed.rpm_per_mps / s.rpm_per_mps - 1.0)
-    P = np.zeros((n_states, n_states))
-    P[0, 0] = P[1, 1] = 1e8  # no position until the first fix
-    P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
-    P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
-    P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
+    P = _prior(m, cfg, col)
     b = sc.boat
-    for name in names:
-        k = col[name]
-        std = next((tp.survey_std_m for tp in fixed if tp.name == name), b.gps_std_m)
-        P[k, k] = P[k + 1, k + 1] = max(std, 1e-3) ** 2
 
     sig_psi = math.radians(s.compass_noise_deg)
     sig_u = s.rpm_noise / s.rpm_per_mps
@@ -113,17 +136,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
     r_var = sc.acoustics.range_noise_m**2 + (0.0 if fixed else swing_var)
     phi_boat = math.exp(-_STEP_S / b.gps_corr_s)
 
-    # measurements, in time order: ("gps", t, std) and ("range", t, beacon)
-    meas: list[tuple[float, str, float | str]] = []
-    for rec in m.records:
-        if isinstance(rec, Gps) and rec.lat is not None:
-            hdop = rec.hdop or 1.0
-            warm = max(0.0, (hdop - 1.0) / 3.0)
-            meas.append((rec.t, "gps", s.gps_std_m + warm * s.gps_warmup_std_m))
-    for t, name in m.channel.clean:
-        if name in col:
-            meas.append((t, "range", name))
-    meas.sort(key=lambda x: x[0])
+    meas = _measurements(m, col)
     first_fix = next((t for t, kind, _ in meas if kind == "gps"), None)
     if first_fix is None:
         return Bound(math.nan, 0, 0)

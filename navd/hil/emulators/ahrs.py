@@ -16,6 +16,8 @@ import time
 from navd.hil.emulators.base import Emulator
 
 REFUSED = bytes([0x21, 0x00, 0x21])  # wrong confirmation bytes
+#: the commands the emulated unit knows, by first byte, and their length in bytes
+_COMMAND_BYTES = {0xE9: 1, 0xE5: 4, 0xFE: 3, 0xCE: 1, 0xC4: 4, 0xFA: 3, 0xDB: 20}
 
 
 def _with_sum(body: bytes) -> bytes:
@@ -62,59 +64,40 @@ class AhrsEmulator(Emulator):
             return  # a MIP unit does not know these commands
         self._rx += data
         while self._rx:
-            c = self._rx[0]
-            if c == 0xE9:
-                del self._rx[0]
-                self.reply(_with_sum(bytes([0xE9]) + struct.pack(">I", self.firmware)))
-            elif c == 0xE5:
-                if len(self._rx) < 4:
-                    return
-                cmd = bytes(self._rx[:4])
-                del self._rx[:4]
-                word = self._eeprom(int.from_bytes(cmd[2:4], "big"))
-                self.reply(_with_sum(bytes([0xE5]) + word.to_bytes(2, "big")))
-            elif c == 0xFE:
-                if len(self._rx) < 3:
-                    return
-                cmd = bytes(self._rx[:3])
-                del self._rx[:3]
-                if cmd == b"\xfe\x9e\x3a":  # soft reset: the stored settings again
-                    self.resets += 1
-                    self.streaming = False
-                    self.decimation = 10
-                else:
-                    self.reply(REFUSED)
-            elif c == 0xCE:
-                del self._rx[0]
-                self.reply(self.euler_frame())
-            elif c == 0xC4:
-                if len(self._rx) < 4:
-                    return
-                cmd = bytes(self._rx[:4])
-                del self._rx[:4]
-                if cmd[1:3] == b"\xc1\x29":
-                    self.reply(_with_sum(bytes([0xC4, cmd[3]]) + struct.pack(">I", self._timer())))
-                    self._start_stream()
-                else:
-                    self.reply(REFUSED)
-            elif c == 0xFA:
-                if len(self._rx) < 3:
-                    return
-                del self._rx[:3]
-                self.streaming = False
-            elif c == 0xDB:
-                if len(self._rx) < 20:
-                    return
-                cmd = bytes(self._rx[:20])
-                del self._rx[:20]
-                if cmd[1:3] == b"\xa8\xb9":
-                    if cmd[3] == 1:
-                        self.decimation = max(1, struct.unpack(">H", cmd[4:6])[0])
-                    self.reply(_with_sum(bytes([0xDB]) + cmd[4:20]))
-                else:
-                    self.reply(REFUSED)
-            else:
+            n = _COMMAND_BYTES.get(self._rx[0])
+            if n is None:
                 del self._rx[0]  # not a command the device knows: ignored
+                continue
+            if len(self._rx) < n:
+                return
+            cmd = bytes(self._rx[:n])
+            del self._rx[:n]
+            self._command(cmd)
+
+    def _command(self, cmd: bytes) -> None:
+        c = cmd[0]
+        if c == 0xE9:
+            self.reply(_with_sum(bytes([0xE9]) + struct.pack(">I", self.firmware)))
+        elif c == 0xE5:
+            word = self._eeprom(int.from_bytes(cmd[2:4], "big"))
+            self.reply(_with_sum(bytes([0xE5]) + word.to_bytes(2, "big")))
+        elif c == 0xFE and cmd == b"\xfe\x9e\x3a":  # soft reset: the stored settings again
+            self.resets += 1
+            self.streaming = False
+            self.decimation = 10
+        elif c == 0xCE:
+            self.reply(self.euler_frame())
+        elif c == 0xC4 and cmd[1:3] == b"\xc1\x29":
+            self.reply(_with_sum(bytes([0xC4, cmd[3]]) + struct.pack(">I", self._timer())))
+            self._start_stream()
+        elif c == 0xFA:
+            self.streaming = False
+        elif c == 0xDB and cmd[1:3] == b"\xa8\xb9":
+            if cmd[3] == 1:
+                self.decimation = max(1, struct.unpack(">H", cmd[4:6])[0])
+            self.reply(_with_sum(bytes([0xDB]) + cmd[4:20]))
+        else:
+            self.reply(REFUSED)  # a known command with arguments the device refuses
 
     def _eeprom(self, address: int) -> int:
         base = 0x0400
