@@ -12,7 +12,7 @@ overlays is :mod:`navd.config`, above it.
 from __future__ import annotations
 
 import typing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Literal
 
 from navd import endpoints, validation
@@ -243,6 +243,17 @@ class DevicesConfig:
     modem: ModemDevice = field(default_factory=ModemDevice)
 
 
+#: the devices navd knows, by the name of their config section: the daemon's devices,
+#: ``navd capture`` and the bench's emulators are all keyed by these
+DEVICE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(DevicesConfig))
+
+
+def device_config(devices: DevicesConfig, name: str) -> SerialPortConfig:
+    """One device's section of ``devices``."""
+    section: SerialPortConfig = getattr(devices, name)
+    return section
+
+
 @dataclass(frozen=True, slots=True)
 class ZenohConfig:
     mode: Literal["peer", "client"] = "peer"
@@ -305,8 +316,8 @@ class Config:
 
 def check_for_run(cfg: Config) -> None:
     """What ``navd run`` needs beyond a valid file: a port for every enabled device."""
-    for name in ("ahrs", "gps", "pressure", "motor", "modem"):
-        dev = getattr(cfg.devices, name)
+    for name in DEVICE_NAMES:
+        dev = device_config(cfg.devices, name)
         if isinstance(dev, GpsDevice) and dev.source == "gpsd":
             continue  # gpsd has the port
         if dev.enabled and not dev.port:

@@ -107,3 +107,17 @@ def test_the_navigation_core_and_the_decoders_load_without_yaml() -> None:
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
+
+
+def test_one_list_of_devices_for_the_daemon_capture_and_the_bench() -> None:
+    import typing
+
+    from navd.daemon.devices import DEVICE_CLASSES
+    from navd.hil.runner import Emulators, FaultDevice
+    from navd.settings import DEVICE_NAMES
+
+    assert DEVICE_NAMES == ("ahrs", "gps", "pressure", "motor", "modem")
+    assert tuple(DEVICE_CLASSES) == DEVICE_NAMES
+    assert all(DEVICE_CLASSES[n].name == n for n in DEVICE_NAMES)  # type: ignore[attr-defined]
+    assert Emulators.__slots__ == DEVICE_NAMES
+    assert typing.get_args(FaultDevice) == DEVICE_NAMES

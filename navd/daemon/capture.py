@@ -12,28 +12,26 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 from navd import files
 from navd.formats.jsonlines import loads
-from navd.settings import Config, ConfigError
-
-DEVICES = ("ahrs", "gps", "pressure", "motor", "modem")
+from navd.settings import DEVICE_NAMES, Config, ConfigError, device_config
 
 
 def capture_config(cfg: Config, device: str, out_dir: str | Path) -> Config:
     """``cfg`` with only ``device`` enabled and every byte of it logged to ``out_dir``."""
-    if device not in DEVICES:
-        raise ConfigError(f"capture: no device {device!r} (one of {', '.join(DEVICES)})")
-    dev = getattr(cfg.devices, device)
+    if device not in DEVICE_NAMES:
+        raise ConfigError(f"capture: no device {device!r} (one of {', '.join(DEVICE_NAMES)})")
+    dev = device_config(cfg.devices, device)
     if not dev.port:
         raise ConfigError(f"devices.{device}.port: required to capture from it")
-    devices = dataclasses.replace(
-        cfg.devices,
-        **{
-            name: dataclasses.replace(getattr(cfg.devices, name), enabled=name == device)
-            for name in DEVICES
-        },
-    )
+    # each section keeps its own type; the mapping is by name, so mypy sees the base class
+    sections: dict[str, Any] = {
+        name: dataclasses.replace(device_config(cfg.devices, name), enabled=name == device)
+        for name in DEVICE_NAMES
+    }
+    devices = dataclasses.replace(cfg.devices, **sections)
     log = dataclasses.replace(
         cfg.log, dir=str(out_dir), raw_bytes=True, raw_budget_bytes_per_s=1e8, keep_mb=0.0
     )

@@ -30,6 +30,7 @@ import yaml
 from navd import files
 from navd.formats import jsonlines
 from navd.hil.emulators.ahrs import AhrsEmulator
+from navd.hil.emulators.base import Emulator
 from navd.hil.emulators.castle import CastleEmulator
 from navd.hil.emulators.gps import GpsEmulator
 from navd.hil.emulators.keller import KellerEmulator
@@ -39,10 +40,29 @@ from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
 from navd.records import Depth, Gps, Heading, Rpm
-from navd.settings import ConfigError, config_from_dict, deep_merge
+from navd.settings import DEVICE_NAMES, ConfigError, config_from_dict, deep_merge, device_config
 from navd.validation import Invalid, build, number
 
 _GPS_HOLD_S = 1.5  # a GPS fix older than this means the antenna went under
+
+
+@dataclass(frozen=True, slots=True)
+class Emulators:
+    """One emulator per device, by the device's config section name."""
+
+    ahrs: AhrsEmulator
+    gps: GpsEmulator
+    pressure: KellerEmulator
+    motor: CastleEmulator
+    modem: ModemEmulator
+
+    def by_name(self, name: str) -> Emulator:
+        emulator: Emulator = getattr(self, name)
+        return emulator
+
+    def each(self) -> list[Emulator]:
+        return [self.by_name(n) for n in DEVICE_NAMES]
+
 FaultDevice = Literal["ahrs", "gps", "pressure", "motor", "modem"]
 FaultAction = Literal[
     "reconnect",
@@ -144,10 +164,7 @@ class Bench:
         cfg = daemon_config(crew, d, zenoh_port, vehicle, connect)
         parsed = config_from_dict(cfg)  # also proves the generated config valid
         self.site = parsed.site
-        self.baud = {
-            n: getattr(parsed.devices, n).baudrate
-            for n in ("ahrs", "gps", "pressure", "motor", "modem")
-        }
+        self.baud = {n: device_config(parsed.devices, n).baudrate for n in DEVICE_NAMES}
         # the emulated devices are set up as the config says the real ones are
         self.modem_timeout_s = parsed.devices.modem.modem_timeout_s
         self.motor_id = parsed.devices.motor.device_id
@@ -169,24 +186,8 @@ class Bench:
         clock = {"t0_monotonic": self.t0, "speed": self.speed}
         (d / "clock.json").write_bytes(jsonlines.dumps(clock))
         # every emulator paces its output at the daemon's configured line speed
-        b = self.baud
-        emus = {
-            "ahrs": AhrsEmulator(d / "ahrs", seed=1, baudrate=b["ahrs"]),
-            "gps": GpsEmulator(d / "gps", seed=2, baudrate=b["gps"]),
-            "pressure": KellerEmulator(d / "pressure", addr=1, seed=3, baudrate=b["pressure"]),
-            "motor": CastleEmulator(
-                d / "motor", seed=4, baudrate=b["motor"], device_id=self.motor_id
-            ),
-            "modem": ModemEmulator(
-                d / "modem",
-                modem_range_fn(self.mission, self.t0),
-                seed=5,
-                timeout_s=self.modem_timeout_s,
-                sound_speed_mps=self.modem_mps,
-                baudrate=b["modem"],
-            ),
-        }
-        gps_emu: GpsEmulator = emus["gps"]  # type: ignore[assignment]
+        emus = self._emulators()
+        gps_emu = emus.gps
         gps_emu.start()
         if banner:
             print(banner, file=sys.stderr, flush=True)  # the ports are served: vehicle up
@@ -206,11 +207,11 @@ class Bench:
                     except TimeoutError:
                         pass
                 if isinstance(rec, Heading):
-                    emus["ahrs"].yaw_deg = rec.deg  # type: ignore[attr-defined]
+                    emus.ahrs.yaw_deg = rec.deg
                 elif isinstance(rec, Rpm):
-                    emus["motor"].rpm = rec.rpm  # type: ignore[attr-defined]
+                    emus.motor.rpm = rec.rpm
                 elif isinstance(rec, Depth):
-                    emus["pressure"].pressure_bar = self._pressure(rec.m)  # type: ignore[attr-defined]
+                    emus.pressure.pressure_bar = self._pressure(rec.m)
                 elif isinstance(rec, Gps):
                     if rec.fix and not gps_off:
                         gps_emu.lat, gps_emu.lon, gps_emu.alt_msl = rec.lat, rec.lon, rec.alt or 0.0
@@ -222,12 +223,31 @@ class Bench:
                     gps_emu.lat = gps_emu.lon = None
             await stop.wait()
         finally:
-            for e in emus.values():
+            for e in emus.each():
                 e.close()
 
+    def _emulators(self) -> Emulators:
+        """Every device's emulator, paced at the daemon's configured line speed and set up
+        as the config says the real device is."""
+        d, b = self.dir, self.baud
+        return Emulators(
+            ahrs=AhrsEmulator(d / "ahrs", seed=1, baudrate=b["ahrs"]),
+            gps=GpsEmulator(d / "gps", seed=2, baudrate=b["gps"]),
+            pressure=KellerEmulator(d / "pressure", addr=1, seed=3, baudrate=b["pressure"]),
+            motor=CastleEmulator(d / "motor", seed=4, baudrate=b["motor"], device_id=self.motor_id),
+            modem=ModemEmulator(
+                d / "modem",
+                modem_range_fn(self.mission, self.t0),
+                seed=5,
+                timeout_s=self.modem_timeout_s,
+                sound_speed_mps=self.modem_mps,
+                baudrate=b["modem"],
+            ),
+        )
+
     @staticmethod
-    def _fault(emus: dict[str, Any], f: dict[str, Any], gps_off: bool) -> bool:
-        e = emus[f["device"]]
+    def _fault(emus: Emulators, f: dict[str, Any], gps_off: bool) -> bool:
+        e: Any = emus.by_name(f["device"])  # an action the device has not is a scenario error
         action, value = f["action"], f.get("value", 0.0)
         if action == "reconnect":
             e.port.reconnect()

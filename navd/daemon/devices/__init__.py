@@ -7,16 +7,20 @@ feeds their bytes in and ticks them; it knows no device by name.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from navd.daemon.devices.ahrs import Ahrs
 from navd.daemon.devices.base import Device, Host
 from navd.daemon.devices.gps import GpsReceiver
 from navd.daemon.devices.modem import ModemPinger
 from navd.daemon.devices.motor import MotorController
 from navd.daemon.devices.pressure import PressureSensor
-from navd.settings import Config
+from navd.settings import DEVICE_NAMES, Config, device_config
 
 __all__ = [
     "Ahrs",
+    "DEVICE_CLASSES",
     "Device",
     "GpsReceiver",
     "Host",
@@ -27,18 +31,21 @@ __all__ = [
 ]
 
 
+#: each device's class, by the name of its config section (navd.settings.DEVICE_NAMES)
+DEVICE_CLASSES: dict[str, Callable[[Any, Host], Device]] = {
+    "ahrs": Ahrs,
+    "gps": GpsReceiver,
+    "pressure": PressureSensor,
+    "motor": MotorController,
+    "modem": ModemPinger,
+}
+
+
 def make_devices(cfg: Config, host: Host) -> dict[str, Device]:
-    """The enabled devices, by the name their config section has."""
-    d = cfg.devices
-    made: list[Device] = []
-    if d.ahrs.enabled:
-        made.append(Ahrs(d.ahrs, host))
-    if d.gps.enabled:
-        made.append(GpsReceiver(d.gps, host))
-    if d.pressure.enabled:
-        made.append(PressureSensor(d.pressure, host))
-    if d.motor.enabled:
-        made.append(MotorController(d.motor, host))
-    if d.modem.enabled:
-        made.append(ModemPinger(d.modem, host))
-    return {dev.name: dev for dev in made}
+    """The enabled devices, by the name their config section has, in its order."""
+    made = {}
+    for name in DEVICE_NAMES:
+        section = device_config(cfg.devices, name)
+        if section.enabled:
+            made[name] = DEVICE_CLASSES[name](section, host)
+    return made
