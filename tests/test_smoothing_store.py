@@ -73,3 +73,20 @@ def test_a_disabled_history_keeps_nothing() -> None:
     h.add(0.0, np.eye(2), np.zeros(2), np.eye(2))
     h.correct(np.ones(2), np.eye(2))
     assert len(h) == 0
+
+
+def test_only_the_kalman_modes_are_smoothable() -> None:
+    """vlbl replaces its state at each fix: it carries no step history at all, and a
+    navigator asked to keep one for it smooths nothing rather than raising."""
+    from navd.filter import Navigator
+    from navd.filter.common import Smoothable
+    from navd.filter.navigator import make_filter
+    from navd.records import Gps
+    from navd.settings import config_from_dict
+
+    for mode, smoothable in (("default", True), ("thesis", True), ("vlbl", False)):
+        cfg = config_from_dict({"navigation": {"filter": mode}})
+        assert isinstance(make_filter(cfg), Smoothable) is smoothable
+        nav = Navigator(cfg, keep_history=True)
+        out = [o for k in range(20) for o in nav.feed(Gps(k * 0.1, 37.05, -80.66, 0.0, 1))]
+        assert out and len(list(nav.smoothed())) == (len(out) if smoothable else 0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import tempfile
 from dataclasses import dataclass
-from typing import IO, TYPE_CHECKING, Any, Protocol
+from typing import IO, TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -192,8 +192,6 @@ class NavFilter(Protocol):
     navigator testing which mode it has.
     """
 
-    history: History
-
     @property
     def initialised(self) -> bool: ...
 
@@ -230,6 +228,14 @@ class NavFilter(Protocol):
 
     def corrections(self) -> Corrections | None:
         """The sensor errors the mode estimates, if it estimates any."""
+
+
+@runtime_checkable
+class Smoothable(NavFilter, Protocol):
+    """A mode the RTS smoother can run over: it records its steps when asked
+    (``history.enabled``), and says how its states differ and add up."""
+
+    history: History
 
     # a mode's state is its own (an array, or an array with a reference point)
     def state_diff(self, a: Any, b: Any) -> np.ndarray: ...

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from navd.filter import estimate
-from navd.filter.common import NavFilter, StateEstimate
+from navd.filter.common import NavFilter, Smoothable, StateEstimate
 from navd.filter.smoother import rts_backward
 from navd.formats import jsonlines
 from navd.schema import Estimate, from_dict, to_dict
@@ -24,7 +24,7 @@ _FIELDS = len(StateEstimate.__slots__)
 
 
 class _Segment:
-    def __init__(self, flt: NavFilter) -> None:
+    def __init__(self, flt: Smoothable) -> None:
         self.filter = flt
         flt.history.enabled = True
         self.steps = array("q")  # the step each tick's estimate was made at
@@ -61,13 +61,18 @@ class Smoothing:
 
     def __init__(self) -> None:
         self._segments: list[_Segment] = []
+        self._current: _Segment | None = None
 
     def start(self, flt: NavFilter) -> None:
-        """A new filter (the first, or one after a restart): a segment of its own."""
-        self._segments.append(_Segment(flt))
+        """A new filter (the first, or one after a restart): a segment of its own.  A mode
+        that cannot be smoothed has none (``navd replay --smooth`` refuses it first)."""
+        self._current = _Segment(flt) if isinstance(flt, Smoothable) else None
+        if self._current is not None:
+            self._segments.append(self._current)
 
     def tick(self, est: Estimate) -> None:
-        self._segments[-1].tick(est)
+        if self._current is not None:
+            self._current.tick(est)
 
     def smoothed(self) -> Iterator[Estimate]:
         """Every tick's estimate re-written by the Rauch-Tung-Striebel smoother."""
@@ -78,3 +83,4 @@ class Smoothing:
         for seg in self._segments:
             seg.close()
         self._segments = []
+        self._current = None
