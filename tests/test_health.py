@@ -13,6 +13,7 @@ import pytest
 
 from navd.daemon.daemon import Daemon
 from navd.daemon.devices import Ahrs, ModemPinger
+from navd.daemon.devices.modem import PING_COUNTS
 from navd.drivers import ahrs, castle, keller, modem
 from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
@@ -275,3 +276,22 @@ def test_an_unanswered_firmware_probe_is_asked_again(tmp_path: Path) -> None:
     assert ahrs.encode_firmware_probe() in port.written  # type: ignore[union-attr]
     st.handle(ahrs.Firmware(clock.t, 1134))
     assert not any("firmware probe" in p for p in d.health().degraded)
+
+
+def test_each_device_says_its_own_part_and_an_absent_one_idles(tmp_path: Path) -> None:
+    d, clock = _daemon(tmp_path)
+    _navigate(d, clock, 1.0)
+    d.devices["pressure"].temperature_c = 11.5  # type: ignore[attr-defined]
+    h = d.health()
+    assert h.temperature_c == 11.5 and h.gps_utc is None and h.esc == {}
+    assert h.pings["sent"] == 0 and h.pings["fused"] == d.fused
+    cfg = config_from_dict(
+        {"log": {"dir": str(tmp_path / "log2")}, "devices": {"modem": {"enabled": False},
+                                                             "pressure": {"enabled": False}}}
+    )  # fmt: skip
+    bare = Daemon(cfg, clock=clock)
+    assert "modem" not in bare.devices
+    h = bare.health()
+    assert h.pings == {**dict.fromkeys(PING_COUNTS, 0), "last": []}
+    assert h.modem == {"mode": "unknown", "ready": False, "escapes": 0}
+    assert h.temperature_c is None

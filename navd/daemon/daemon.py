@@ -20,18 +20,13 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any, TypeVar
+from typing import Any
 
 from navd.config import log_dir
 from navd.daemon.checkpoint import Checkpoints, checkpoint_dir, config_digest
-from navd.daemon.devices import (
-    Device,
-    GpsReceiver,
-    ModemPinger,
-    MotorController,
-    PressureSensor,
-    make_devices,
-)
+from navd.daemon.devices import Device, make_devices
+from navd.daemon.devices.base import HealthSections
+from navd.daemon.devices.modem import idle_sections
 from navd.daemon.health import RECENT_S, Vitals
 from navd.daemon.sdnotify import Notifier
 from navd.drivers.codec import DecodeStats
@@ -48,7 +43,6 @@ RESET_SPACING_S = 10.0  # any reset at most this often
 FORCED_RESET_SPACING_S = 60.0  # a forced one (it stops navigation until the next fix)
 ZENOH_OPEN_WARN_S = 5.0  # a session not open by then is said in health (it goes on trying)
 STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is closed in time
-D = TypeVar("D", bound=Device)
 
 
 class _Logged:
@@ -311,16 +305,14 @@ class Daemon:
                 self.pub.put(h)
                 self.pub.put(adv)
 
-    def _device(self, kind: type[D]) -> D | None:
-        return next((d for d in self.devices.values() if isinstance(d, kind)), None)
-
     def health(self) -> Health:
         now = self.clock()
         devices = {name: dev.health(now) for name, dev in self.devices.items()}
-        pinger = self._device(ModemPinger) or ModemPinger(self.cfg.devices.modem, self)
-        pressure = self._device(PressureSensor)
-        gps = self._device(GpsReceiver)
-        motor = self._device(MotorController)
+        # each device's own sections; a device navd has not says nothing, or idles
+        own: HealthSections = {"temperature_c": None, "gps_utc": None, "esc": {}}
+        own.update(idle_sections())
+        for dev in self.devices.values():
+            own.update(dev.sections())
         lat = list(self.tick_lateness)
         est = self.latest
         mode = est.mode if est else "waiting_for_gps"
@@ -353,12 +345,8 @@ class Daemon:
             if self.vitals.t_range_accepted is None
             else round(now - self.vitals.t_range_accepted, 3),
             devices=devices,
-            pings={**pinger.pings, "fused": self.fused, "last": list(self.vitals.pings)},
-            modem={
-                "mode": pinger.session.mode,
-                "ready": pinger.session.ready,
-                "escapes": pinger.session.escapes,
-            },
+            pings={**own["pings"], "fused": self.fused, "last": list(self.vitals.pings)},
+            modem=own["modem"],
             filter=dict(self.nav.counters),
             ticks=self.ticks,
             tick_overruns=self.overruns,
@@ -398,10 +386,9 @@ class Daemon:
                 "errors": self.pub.errors,
                 "commands": dict(self.pub.commands),
             },
-            temperature_c=pressure.temperature_c if pressure else None,
-            # the receiver's last UTC (RMC): against t_utc of the estimates, the clock's error
-            gps_utc=gps.utc.isoformat() if gps and gps.utc else None,
-            esc=dict(motor.esc) if motor else {},
+            temperature_c=own["temperature_c"],
+            gps_utc=own["gps_utc"],
+            esc=own["esc"],
         )
 
     def _resume(self) -> None:

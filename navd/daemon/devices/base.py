@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 from collections import deque
 from collections.abc import Callable, Coroutine
-from typing import Any, Protocol
+from typing import Any, Protocol, TypedDict
 
 from navd.daemon.health import RECENT_S, Vitals
 from navd.drivers.codec import DeviceError
@@ -28,6 +28,16 @@ class Host(Protocol):
     def clock(self) -> float: ...
 
     def feed(self, rec: Any) -> None: ...
+
+
+class HealthSections(TypedDict, total=False):
+    """The sections of health's top level that belong to one device (docs/schema.md)."""
+
+    pings: dict[str, Any]  # the modem's
+    modem: dict[str, Any]
+    temperature_c: float | None  # the pressure sensor's
+    gps_utc: str | None  # the GPS receiver's last UTC
+    esc: dict[str, float]  # the motor controller's battery, current, temperature
 
 
 class Device:
@@ -142,6 +152,10 @@ class Device:
             internal_errors=dict(hl.internal_errors) if hl else {},
             decode_reasons=dict(stats.reasons),
         )
+
+    def sections(self) -> HealthSections:
+        """What this device says at health's top level, beside its entry in ``devices``."""
+        return {}
 
     def problems(self, now: float, h: DeviceHealth) -> list[str]:
         """Everything health should say of this device, given its ``health(now)``."""

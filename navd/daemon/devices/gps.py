@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from navd.daemon.devices.base import Device, Host
+from navd.daemon.devices.base import Device, HealthSections, Host
 from navd.drivers import gps, gpsd
 from navd.drivers.transport import SerialTransport
 from navd.records import Gps
@@ -23,6 +23,10 @@ class GpsReceiver(Device):
         super().__init__(cfg, host, decoder)
         self.gpsd = cfg.source == "gpsd"
         self.utc: dt.datetime | None = None  # the receiver's last UTC (RMC, or gpsd's TPV)
+
+    def sections(self) -> HealthSections:
+        # against t_utc of the estimates, the system clock's error
+        return {"gps_utc": self.utc.isoformat() if self.utc else None}
 
     def on_open(self, tr: SerialTransport) -> None:
         if self.gpsd:

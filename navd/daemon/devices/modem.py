@@ -8,13 +8,36 @@ import asyncio
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.daemon.devices.base import Device, Host
+from navd.daemon.devices.base import Device, HealthSections, Host
 from navd.drivers import modem
 from navd.drivers.transport import SerialTransport
 from navd.records import Range
 from navd.settings import ModemDevice
 
 UNREADY_S = 10.0  # this long outside command mode is said in health
+#: how every ping ended, counted in health's ``pings``
+PING_COUNTS = (
+    "sent",
+    "ranges",
+    "fused",  # range decisions the filter made: every range should get one
+    "no_reply",
+    "refused",  # ERROR, or the shell's "Command '...' not found"
+    "timeouts",
+    "errors",  # ranges nobody asked for
+    "skipped_busy",
+    "skipped_not_in_command_mode",
+    "skipped_port_down",
+)
+
+
+def _sections(pings: dict[str, int], session: modem.ModemSession) -> HealthSections:
+    state = {"mode": session.mode, "ready": session.ready, "escapes": session.escapes}
+    return {"pings": dict(pings), "modem": state}
+
+
+def idle_sections() -> HealthSections:
+    """Health's modem sections when navd has no modem (``devices.modem.enabled: false``)."""
+    return _sections(dict.fromkeys(PING_COUNTS, 0), modem.ModemSession())
 
 
 class ModemPinger(Device):
@@ -25,21 +48,13 @@ class ModemPinger(Device):
         self.modem = cfg
         self.session = modem.ModemSession()
         self.ping_t: float | None = None  # when the outstanding ping left
-        self.pings = {
-            "sent": 0,
-            "ranges": 0,
-            "fused": 0,  # range decisions the filter made: every range should get one
-            "no_reply": 0,
-            "refused": 0,  # ERROR, or the shell's "Command '...' not found"
-            "timeouts": 0,
-            "errors": 0,  # ranges nobody asked for
-            "skipped_busy": 0,
-            "skipped_not_in_command_mode": 0,
-            "skipped_port_down": 0,
-        }
+        self.pings = dict.fromkeys(PING_COUNTS, 0)
 
     def on_open(self, tr: SerialTransport) -> None:
         self.session.opened(self.host.clock())
+
+    def sections(self) -> HealthSections:
+        return _sections(self.pings, self.session)
 
     def tasks(self) -> list[Coroutine[Any, Any, None]]:
         return [self._keeper(), self._pinger()]

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.daemon.devices.base import Device, Host
+from navd.daemon.devices.base import Device, HealthSections, Host
 from navd.drivers import castle
 from navd.drivers.transport import SerialTransport
 from navd.records import Rpm
@@ -21,6 +21,9 @@ class MotorController(Device):
         self.poll_hz = cfg.poll_hz
         self.expected_rate_hz = cfg.poll_hz
         self.esc: dict[str, float] = {}  # battery voltage, current, temperature
+
+    def sections(self) -> HealthSections:
+        return {"esc": dict(self.esc)}
 
     def on_open(self, tr: SerialTransport) -> None:
         tr.write(self.decoder.request_clear())  # a half request left in the ESC is dropped

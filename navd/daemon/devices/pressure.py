@@ -7,7 +7,7 @@ import logging
 from collections.abc import Coroutine
 from typing import Any
 
-from navd.daemon.devices.base import Device, Host
+from navd.daemon.devices.base import Device, HealthSections, Host
 from navd.drivers import keller
 from navd.drivers.transport import SerialTransport
 from navd.records import Pressure
@@ -22,6 +22,9 @@ class PressureSensor(Device):
         self.poll_hz = cfg.poll_hz
         self.expected_rate_hz = cfg.poll_hz
         self.temperature_c: float | None = None
+
+    def sections(self) -> HealthSections:
+        return {"temperature_c": self.temperature_c}
 
     def on_open(self, tr: SerialTransport) -> None:
         tr.write(self.decoder.request_init())
