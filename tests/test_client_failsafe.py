@@ -22,7 +22,7 @@ import pytest
 from test_commands import Loop
 
 from navd.client import Gone, NavClient, NavUnavailable, NoAnswer, Stale
-from navd.daemon.publish import Publisher
+from navd.daemon.publish import Publisher, ResetCommand
 from navd.hil.bench_vehicle import free_port
 from navd.schema import Estimate, from_dict
 from navd.settings import ZenohConfig
@@ -158,7 +158,7 @@ def test_an_accepted_reset_forgets_the_latest_estimate(tmp_path) -> None:
     )
     d = Daemon(cfg, clock=lambda: 100.0)
     d.pub = Pub()  # type: ignore[assignment]
-    assert d.on_command("reset", {}) is None
+    assert d.on_command(ResetCommand()) is None
     assert d.pub.forgotten == 1  # type: ignore[attr-defined]
     d.rlog.close()
 

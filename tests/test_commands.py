@@ -12,7 +12,6 @@ import socket
 import threading
 from collections.abc import Iterator
 from dataclasses import replace
-from typing import Any
 
 import pytest
 import zenoh
@@ -20,7 +19,10 @@ import zenoh
 from navd.daemon.publish import (
     COMMAND_BURST,
     MAX_COMMAND_BYTES,
+    BeaconCommand,
+    Command,
     Publisher,
+    ResetCommand,
     TokenBucket,
     parse_command,
     validate_beacon,
@@ -44,14 +46,14 @@ class Loop:
         self.loop = asyncio.new_event_loop()
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
-        self.seen: list[tuple[str, dict]] = []
+        self.seen: list[Command] = []
         self.submerged = False
         self.endpoints: list[str] = []
 
-    def on_command(self, name: str, body: dict[str, Any]) -> str | None:
-        if name == "reset" and self.submerged and not body.get("force"):
+    def on_command(self, cmd: Command) -> str | None:
+        if isinstance(cmd, ResetCommand) and self.submerged and not cmd.force:
             return "submerged: send force"
-        self.seen.append((name, body))
+        self.seen.append(cmd)
         return None
 
     def close(self) -> None:
@@ -108,7 +110,7 @@ def test_a_reset_while_submerged_needs_force(vehicle: tuple[Loop, Publisher, zen
     assert reply["ok"] is False and "force" in reply["error"]
     (reply,) = _ask(client, "reset", b'{"force": true, "reason": "operator"}')
     assert reply == {"ok": True}
-    assert loop.seen == [("reset", {"force": True, "reason": "operator"})]
+    assert loop.seen == [ResetCommand(reason="operator", force=True)]
 
 
 def test_command_spam_is_rate_limited(vehicle: tuple[Loop, Publisher, zenoh.Session]) -> None:
@@ -125,16 +127,15 @@ def test_parse_command_is_total_and_bounded() -> None:
     assert parse_command(b"x" * (MAX_COMMAND_BYTES + 1), validate_beacon) == (
         f"payload longer than {MAX_COMMAND_BYTES} bytes"
     )
-    assert parse_command(b"{}", validate_reset) == {}
+    assert parse_command(b"{}", validate_reset) == ResetCommand()
     assert isinstance(parse_command(b'{"force": 1}', validate_reset), str)
     assert isinstance(
         parse_command(b'{"name": "' + b"n" * 33 + b'", "lat": 0, "lon": 0}', validate_beacon), str
     )
-    assert parse_command(b'{"name": "udb-2", "lat": 0, "lon": 0}', validate_beacon) == {
-        "name": "udb-2",
-        "lat": 0,
-        "lon": 0,
-    }
+    assert parse_command(b'{"name": "udb-2", "lat": 0, "lon": 0}', validate_beacon) == (
+        BeaconCommand(name="udb-2", lat=0.0, lon=0.0)
+    )
+    assert parse_command(b'{"name": "udb-2", "lat": 0}', validate_beacon) == "lon: missing"
 
 
 def test_token_bucket_refills_at_its_rate() -> None:
@@ -185,7 +186,7 @@ def test_the_shipped_access_control_refuses_commands_of_the_unauthorised(tmp_pat
                 session(user, password)  # not even a session without the credentials
         pilot = session("autopilot", "pilot-secret")
         assert _ask(pilot, "reset", b"{}") == [{"ok": True}]
-        assert loop.seen == [("reset", {})]
+        assert loop.seen == [ResetCommand()]
         pilot.close()
     finally:
         pub.close()
@@ -308,7 +309,7 @@ def test_a_shore_link_over_tls_with_mutual_authentication(tmp_path) -> None:
         for key in (None, "stranger"):
             with pytest.raises(zenoh.ZError):
                 session(key)
-        assert loop.seen == [("reset", {})]
+        assert loop.seen == [ResetCommand()]
     finally:
         pub.close()
         loop.close()
@@ -369,14 +370,14 @@ def test_resets_are_spaced_so_that_they_cannot_stop_navigation(tmp_path) -> None
         }
     )
     d = Daemon(cfg, clock=lambda: now[0])
-    assert d.on_command("reset", {}) is None
+    assert d.on_command(ResetCommand()) is None
     now[0] += 5.0
-    assert "at most one every 10 s" in (d.on_command("reset", {}) or "")
+    assert "at most one every 10 s" in (d.on_command(ResetCommand()) or "")
     now[0] += 6.0
-    assert d.on_command("reset", {"force": True}) is None
+    assert d.on_command(ResetCommand(force=True)) is None
     now[0] += 11.0
-    assert "once every 60 s" in (d.on_command("reset", {"force": True}) or "")
-    assert d.on_command("reset", {}) is None  # an unforced one, 11 s later, is fine
+    assert "once every 60 s" in (d.on_command(ResetCommand(force=True)) or "")
+    assert d.on_command(ResetCommand()) is None  # an unforced one, 11 s later, is fine
     now[0] += 50.0
-    assert d.on_command("reset", {"force": True}) is None
+    assert d.on_command(ResetCommand(force=True)) is None
     d.rlog.close()

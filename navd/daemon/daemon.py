@@ -28,6 +28,7 @@ from navd.daemon.devices import Device, make_devices
 from navd.daemon.devices.base import HealthSections
 from navd.daemon.devices.modem import idle_sections
 from navd.daemon.health import RECENT_S, Vitals
+from navd.daemon.publish import BeaconCommand, Command, ResetCommand
 from navd.daemon.sdnotify import Notifier
 from navd.drivers.codec import DecodeStats
 from navd.drivers.transport import SerialTransport
@@ -170,34 +171,39 @@ class Daemon:
         self.publish_latency.append(self.clock() - est.t)
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
-    def on_command(self, name: str, body: dict[str, Any]) -> str | None:
-        """A validated command, or why it is refused (None: done).
+    def on_command(self, cmd: Command) -> str | None:
+        """Carry out a validated command, or say why it is refused (None: done).
 
         It is fed like a measurement, so the log keeps it and replay redoes it.
         """
+        match cmd:
+            case ResetCommand():
+                return self._reset(cmd.force)
+            case BeaconCommand():
+                known = self.nav.ranging.beacons.beacons
+                if cmd.name not in known and len(known) >= MAX_BEACONS:
+                    return f"at most {MAX_BEACONS} beacons"
+                self.feed(SetBeacon(self.clock(), cmd.name, cmd.lat, cmd.lon, cmd.depth))
+        return None
+
+    def _reset(self, force: bool) -> str | None:
         t = self.clock()
-        if name == "reset":
-            if self.nav.mode(t) == "submerged" and not body.get("force"):
-                # submerged, the filter cannot start again until the vehicle surfaces
-                return "submerged: a reset stops navigation until the next GPS fix; send force"
-            # each reset stops the estimates until the next fix: their rate is bounded so
-            # that no run of them, however well-formed, can keep navd from navigating
-            since = t - self._t_reset
-            if since < RESET_SPACING_S:
-                return f"a reset {since:.1f} s ago: at most one every {RESET_SPACING_S:g} s"
-            if body.get("force") and t - self._t_forced < FORCED_RESET_SPACING_S:
-                return f"a forced reset at most once every {FORCED_RESET_SPACING_S:g} s"
-            self._t_reset = t
-            if body.get("force"):
-                self._t_forced = t
-            self.feed(Reset(t))
-            if self.pub is not None:
-                self.pub.forget_latest()
-        elif name == "beacon":
-            known = self.nav.ranging.beacons.beacons
-            if body["name"] not in known and len(known) >= MAX_BEACONS:
-                return f"at most {MAX_BEACONS} beacons"
-            self.feed(SetBeacon(t, body["name"], body["lat"], body["lon"], body.get("depth", 0.0)))
+        if self.nav.mode(t) == "submerged" and not force:
+            # submerged, the filter cannot start again until the vehicle surfaces
+            return "submerged: a reset stops navigation until the next GPS fix; send force"
+        # each reset stops the estimates until the next fix: their rate is bounded so
+        # that no run of them, however well-formed, can keep navd from navigating
+        since = t - self._t_reset
+        if since < RESET_SPACING_S:
+            return f"a reset {since:.1f} s ago: at most one every {RESET_SPACING_S:g} s"
+        if force and t - self._t_forced < FORCED_RESET_SPACING_S:
+            return f"a forced reset at most once every {FORCED_RESET_SPACING_S:g} s"
+        self._t_reset = t
+        if force:
+            self._t_forced = t
+        self.feed(Reset(t))
+        if self.pub is not None:
+            self.pub.forget_latest()
         return None
 
     # -- tasks -------------------------------------------------------------------------

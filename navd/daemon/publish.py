@@ -81,27 +81,29 @@ class BeaconCommand:
     depth: float = 0.0
 
 
-def _command(cls: type, body: dict[str, Any], required: tuple[str, ...] = ()) -> Any:
-    missing = [k for k in required if k not in body]
+#: a command as the daemon gets it: validated, typed
+Command = ResetCommand | BeaconCommand
+
+
+def validate_reset(body: dict[str, Any]) -> ResetCommand | str:
+    """The reset the body asks for, or why it is refused."""
+    try:
+        cmd: ResetCommand = build(ResetCommand, body)
+    except Invalid as exc:
+        return str(exc)
+    return cmd
+
+
+def validate_beacon(body: dict[str, Any]) -> BeaconCommand | str:
+    """The beacon position the body gives, or why it is refused."""
+    missing = [k for k in ("name", "lat", "lon") if k not in body]
     if missing:
-        raise Invalid(f"{missing[0]}: missing")
-    return build(cls, body)
-
-
-def validate_reset(body: dict[str, Any]) -> str | None:
+        return f"{missing[0]}: missing"
     try:
-        _command(ResetCommand, body)
+        cmd: BeaconCommand = build(BeaconCommand, body)
     except Invalid as exc:
         return str(exc)
-    return None
-
-
-def validate_beacon(body: dict[str, Any]) -> str | None:
-    try:
-        c: BeaconCommand = _command(BeaconCommand, body, ("name", "lat", "lon"))
-    except Invalid as exc:
-        return str(exc)
-    return implausible(SetBeacon(0.0, c.name, c.lat, c.lon, c.depth))
+    return implausible(SetBeacon(0.0, cmd.name, cmd.lat, cmd.lon, cmd.depth)) or cmd
 
 
 def encode(seq: int, body: dict[str, Any]) -> bytes:
@@ -127,8 +129,8 @@ class TokenBucket:
         return True
 
 
-def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], str | None]) -> dict | str:
-    """The command's body, or why it is refused; never raises, whatever the bytes."""
+def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], Command | str]) -> Command | str:
+    """The command the bytes ask for, or why it is refused; never raises, whatever they are."""
     if len(raw) > MAX_COMMAND_BYTES:
         return f"payload longer than {MAX_COMMAND_BYTES} bytes"
     try:
@@ -140,7 +142,7 @@ def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], str | None]) 
     if not isinstance(body, dict):
         return "payload must be a JSON object"
     try:
-        return validate(body) or body
+        return validate(body)
     except Exception:  # pragma: no cover - validators are total; this is the last guard
         return "malformed command"
 
@@ -151,7 +153,7 @@ class Publisher:
         zcfg: ZenohConfig,
         vehicle: str,
         loop: asyncio.AbstractEventLoop,
-        on_command: Callable[[str, dict[str, Any]], str | None],
+        on_command: Callable[[Command], str | None],
     ) -> None:
         self.prefix = f"auv/{vehicle}/nav"
         self.loop = loop
@@ -226,7 +228,9 @@ class Publisher:
             payload = encode(self.seq["estimate"], {**body, "age_s": round(age, 3)})
             query.reply(f"{self.prefix}/latest", payload, encoding=_JSON)
 
-    def _command(self, name: str, validate: Callable[[dict[str, Any]], str | None]):
+    def _command(
+        self, name: str, validate: Callable[[dict[str, Any]], Command | str]
+    ) -> Callable[[zenoh.Query], None]:
         def handle(query: zenoh.Query) -> None:
             try:
                 reply = self._decide(name, validate, query)
@@ -240,12 +244,12 @@ class Publisher:
         return handle
 
     def _decide(
-        self, name: str, validate: Callable[[dict[str, Any]], str | None], query: zenoh.Query
+        self, name: str, validate: Callable[[dict[str, Any]], Command | str], query: zenoh.Query
     ) -> dict[str, Any]:
         raw = query.payload.to_bytes() if query.payload is not None else b"{}"
-        body = parse_command(raw, validate)
-        if isinstance(body, str):
-            return {"ok": False, "error": body}  # answered, and no well-formed one's budget
+        cmd = parse_command(raw, validate)
+        if isinstance(cmd, str):
+            return {"ok": False, "error": cmd}  # answered, and no well-formed one's budget
         if not self._buckets[name].take():
             self.commands["rate_limited"] += 1
             return {"ok": False, "error": "rate limited: try again later"}
@@ -255,7 +259,7 @@ class Publisher:
 
         def run() -> None:
             try:
-                fut.set_result(self.on_command(name, body))
+                fut.set_result(self.on_command(cmd))
             except Exception as exc:
                 fut.set_exception(exc)
 
