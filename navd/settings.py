@@ -60,9 +60,6 @@ class NoiseConfig:
     heading_bias_init_std_deg: float = _num(5.0, gt=0.0)
     speed_scale_init_std: float = _num(0.1, gt=0.0)
     current_walk_mps_per_sqrt_s: float = _num(0.002, lo=0.0)
-    # the current's rate of change (default mode): its prior, and the random walk of the rate
-    current_rate_init_std_mps_per_h: float = _num(0.0, lo=0.0)
-    current_rate_walk_mps_per_h_per_sqrt_s: float = _num(0.0, lo=0.0)
     heading_bias_walk_deg_per_sqrt_s: float = _num(0.01, lo=0.0)
     speed_scale_walk_per_sqrt_s: float = _num(0.0005, lo=0.0)
     input_corr_s: float = _num(2.0, gt=0.0)  # correlation time of heading/speed errors

@@ -35,7 +35,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import Corrections, GateDecision, RangeMeas, StateEstimate
-from navd.filter.ekf import M2_RAD_PER_S, PER_HOUR, RangeEKF
+from navd.filter.ekf import RangeEKF
 from navd.filter.lsfix import Fix
 from navd.settings import NoiseConfig
 
@@ -58,13 +58,6 @@ _OUTLIER_SPREAD_M = 300.0
 # evidence takes to build.
 _SWITCH = 0.05
 _PRIOR = 0.5  # before any range, neither belief is the likelier
-# The uncalibrated belief also lets the current change at the rate of a tidal stream as
-# strong as its current prior allows: a tide of amplitude A changes at A*w (w the
-# semidiurnal rate), per axis A*w/sqrt(2), and that rate itself by A*w^2 per second, a
-# random walk that builds as much in this long.  The config's belief keeps the config's
-# rate (none unless the site sets one): on the drawn missions a rate in the config filter
-# made steady-current missions worse (BENCHMARKS.md, "Honest uncertainty near the bound").
-_RATE_CHANGE_S = 3600.0
 
 
 def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
@@ -73,11 +66,6 @@ def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
     def wider(v: float, k: float, cap: float) -> float:
         return max(v, min(k * v, cap))
 
-    # unknown water: a semidiurnal stream as strong as the widened current's cap
-    amp = _MAX_CURRENT_STD_FRACTION * max_current_mps
-    rate = amp * M2_RAD_PER_S / math.sqrt(2.0) / PER_HOUR
-    rate_walk = amp * M2_RAD_PER_S**2 * math.sqrt(_RATE_CHANGE_S) / PER_HOUR
-
     return replace(
         nz,
         current_init_std_mps=wider(
@@ -85,10 +73,6 @@ def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
         ),
         heading_bias_init_std_deg=wider(nz.heading_bias_init_std_deg, _WIDEN, _MAX_BIAS_STD_DEG),
         speed_scale_init_std=wider(nz.speed_scale_init_std, _WIDEN, _MAX_SCALE_STD),
-        current_rate_init_std_mps_per_h=max(nz.current_rate_init_std_mps_per_h, rate),
-        current_rate_walk_mps_per_h_per_sqrt_s=max(
-            nz.current_rate_walk_mps_per_h_per_sqrt_s, rate_walk
-        ),
     )
 
 
@@ -149,14 +133,7 @@ class CalibrationBank:
             b.heading_bias_init_std_deg / a.heading_bias_init_std_deg,
             b.speed_scale_init_std / a.speed_scale_init_std,
         )
-        Pu = P * np.outer(k, k)
-        # a config without a current rate has none in its covariance: the other belief's
-        # rate starts again from its prior
-        rate_var = (b.current_rate_init_std_mps_per_h * PER_HOUR) ** 2
-        for i in (8, 9):
-            Pu[i, :] = Pu[:, i] = 0.0
-            Pu[i, i] = max(P[i, i], rate_var)
-        self.uncal.restore(x, Pu, grow_m2)
+        self.uncal.restore(x, P * np.outer(k, k), grow_m2)
         self.w_uncal = _PRIOR
 
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:

@@ -2,9 +2,9 @@
 
 Geodetic nominal state, as in the thesis, with an error state in metres:
 
-    nominal  x = (lat, lon, c_n, c_e, b, s, o_n, o_e, r_n, r_e)
-    error   dx = (dn, de, dc_n, dc_e, db, ds, do_n, do_e, dr_n, dr_e)
-             metres, m/s, radians, scale, metres, m/s^2
+    nominal  x = (lat, lon, c_n, c_e, b, s, o_n, o_e)
+    error   dx = (dn, de, dc_n, dc_e, db, ds, do_n, do_e)
+             metres, m/s, radians, scale, metres
 
 * ``c_n, c_e`` water current north/east in m/s (the thesis carried rad/s).
 * ``b`` heading bias added to the declination-corrected compass heading (the
@@ -16,11 +16,6 @@ Geodetic nominal state, as in the thesis, with an error state in metres:
   noise, its error made the filter overconfident (BENCHMARKS.md, consistency).
   Only the first beacon heard has these states; others add their position error
   to the range variance.
-* ``r_n, r_e`` the current's rate of change (an integrated random walk: the current
-  is the integral of the rate, the rate a random walk).  A tidal stream turns over
-  hours at an almost steady rate; a current that is only a random walk trails a steady
-  change, and with one beacon the compass bias takes up what the current does not,
-  both sure and both wrong (BENCHMARKS.md, "Honest uncertainty near the bound").
 
 What it changes from the thesis, and why:
 
@@ -63,7 +58,7 @@ from navd.filter.integrity import chi2_quantile
 from navd.filter.lsfix import Fix
 from navd.settings import NoiseConfig
 
-N_STATES = 10
+N_STATES = 8
 _EYE = np.eye(N_STATES)
 _OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
 # Recent ranges the re-acquisition fit looks at, and the dead-reckoned track kept to
@@ -74,11 +69,6 @@ _TRACK_SECONDS = _WINDOW_S
 _HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
 _MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
 _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
-PER_HOUR = 1.0 / 3600.0  # the current's rate is configured in m/s per hour
-# The principal lunar semidiurnal tide's angular rate (period 12.4206 h): a stream of
-# amplitude A changes by at most A times this per second.  The estimated rate is held
-# below that of a stream at the site's fastest current.
-M2_RAD_PER_S = 2.0 * math.pi / (12.4206 * 3600.0)
 
 
 class RangeEKF:
@@ -98,7 +88,7 @@ class RangeEKF:
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
-        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
         self.P = np.eye(N_STATES)
         # the beacon whose reported-position error the offset states track, and its model
         self.primary: str | None = None
@@ -133,7 +123,7 @@ class RangeEKF:
     # -- initialisation and GPS -------------------------------------------------------
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         nz = self.noise
-        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
         self.P = np.diag(
             [
                 std_m**2,
@@ -144,8 +134,6 @@ class RangeEKF:
                 nz.speed_scale_init_std**2,
                 _OFFSET_PRIOR_M2,
                 _OFFSET_PRIOR_M2,
-                (nz.current_rate_init_std_mps_per_h * PER_HOUR) ** 2,
-                (nz.current_rate_init_std_mps_per_h * PER_HOUR) ** 2,
             ]
         )
         self.initialised = True
@@ -183,17 +171,13 @@ class RangeEKF:
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""
         lat, lon, cn, ce, b, s = self.x[:6].tolist()
-        rn, re = float(self.x[8]), float(self.x[9])
         psi = heading + b
         u = s * speed
         cpsi, spsi = math.cos(psi), math.sin(psi)
-        # the current at the step's middle, as the rate carries it
-        vn = u * cpsi + cn + 0.5 * rn * dt
-        ve = u * spsi + ce + 0.5 * re * dt
+        vn = u * cpsi + cn
+        ve = u * spsi + ce
         dn, de = vn * dt, ve * dt
         self.x[0], self.x[1] = geodesy.offset_position(lat, lon, dn, de, hd)
-        self.x[2] += rn * dt
-        self.x[3] += re * dt
         self._cum_n += dn
         self._cum_e += de
         self._track_t.append(t)
@@ -209,8 +193,6 @@ class RangeEKF:
         F[1, 4] = u * cpsi * dt
         F[0, 5] = speed * cpsi * dt
         F[1, 5] = speed * spsi * dt
-        F[2, 8] = F[3, 9] = dt
-        F[0, 8] = F[1, 9] = 0.5 * dt * dt
 
         nz = self.noise
         # Heading and speed errors are correlated over input_corr_s, so their effect on
@@ -241,9 +223,6 @@ class RangeEKF:
         P[3, 3] += q_cur
         P[4, 4] += math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
         P[5, 5] += nz.speed_scale_walk_per_sqrt_s**2 * dt
-        q_rate = (nz.current_rate_walk_mps_per_h_per_sqrt_s * PER_HOUR) ** 2 * dt
-        P[8, 8] += q_rate
-        P[9, 9] += q_rate
         if self.primary is not None:
             q_off = self._off_std**2 * (1.0 - phi * phi)
             P[6, 6] += q_off
@@ -438,15 +417,10 @@ class RangeEKF:
         return True
 
     def _limit_current(self) -> None:
-        """Hold the current to what water can do at this site (``max_current_mps``), and
-        its change to what a tide that fast does."""
+        """Hold the current to what water can do at this site (``max_current_mps``)."""
         speed = math.hypot(float(self.x[2]), float(self.x[3]))
         if speed > self.max_current:
             self.x[2:4] *= self.max_current / speed
-        rate = math.hypot(float(self.x[8]), float(self.x[9]))
-        max_rate = self.max_current * M2_RAD_PER_S
-        if rate > max_rate:
-            self.x[8:10] *= max_rate / rate
 
     def _apply(self, dx: np.ndarray, hd: float) -> None:
         self.x = self.state_apply(self.x, dx, hd)
