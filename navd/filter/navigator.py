@@ -163,7 +163,10 @@ class Navigator:
             # the gap with ticks could mean millions of them.  Start over at the next fix.
             self.restart("after_gap")
         out = self._ticks_until(t, inclusive=False)
-        self._propagate_to(t)
+        if type(rec) in _HELD:
+            self._hold_to(t)
+        else:
+            self._propagate_to(t)
         handler = _HANDLERS.get(type(rec))
         if handler is None:  # pragma: no cover - every record type has a handler
             self.counters["skipped_unknown_record"] += 1
@@ -295,18 +298,31 @@ class Navigator:
             self._tick_k += 1
         return out
 
+    def _hold_to(self, t: float) -> None:
+        """An input is about to change at ``t``: keep what was held until then for the
+        next step (navd.filter.inputs), instead of stepping the filter to ``t``."""
+        if self._t_filter is None or t <= self._t_filter:
+            return
+        self.inputs.carry(self._t_filter, t)
+        if self._dvl_seen:
+            # the DVL's track turns with the attitude: it moves to t before it changes
+            self.dvl.advance(t, self.surface_altitude - self.depth.m)
+
     def _propagate_to(self, t: float) -> None:
-        if self._t_filter is not None and t > self._t_filter:
-            # the virtual net's relative track: needs no absolute position
-            heading, speed = self.inputs.heading_speed()
-            self.ranging.net.move(speed * (t - self._t_filter), heading)
-        if self._t_filter is None or not self.filter.initialised:
+        if self._t_filter is None:
             self._t_filter = t
             return
         remaining = t - self._t_filter
         if remaining <= 0.0:
+            if not self.filter.initialised:
+                self._t_filter = t
             return
-        heading, speed = self.inputs.heading_speed()
+        heading, speed = self.inputs.over(self._t_filter, t)
+        # the virtual net's relative track: needs no absolute position
+        self.ranging.net.move(speed * remaining, heading)
+        if not self.filter.initialised:
+            self._t_filter = t
+            return
         hd = self.surface_altitude - self.depth.m
         # Long gaps (a log with a hole) are crossed in steps of one tick.
         n = max(1, math.ceil(remaining / self.tick_dt - 1e-9))
@@ -439,6 +455,10 @@ class Navigator:
             self.smoothing.tick(est)
         return est
 
+
+# Records that only change a held input: the filter steps at the next tick or
+# measurement with what was held in between (navd.filter.inputs).
+_HELD = frozenset({Heading, Attitude, Rpm, Depth, Pressure})
 
 _HANDLERS: dict[type, Any] = {
     Heading: Navigator._on_heading,
