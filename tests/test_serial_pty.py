@@ -233,3 +233,42 @@ def test_modem_emulator_hears_the_world_channel(tmp_path: Path) -> None:
         emu.close()
 
     asyncio.run(main())
+
+
+def test_a_quiet_port_stays_open_and_a_paced_line_is_read_in_few_wake_ups(
+    tmp_path: Path,
+) -> None:
+    """Ports are read every 20 ms, not at every byte: an idle tty (whose empty reads look
+    like a hang-up's) is kept, and a 4800-baud GPS, whose bytes arrive two at a time,
+    is read at most once a window with every sentence intact."""
+
+    async def main() -> None:
+        quiet = GpsEmulator(tmp_path / "quiet")  # never started: says nothing
+        talker = GpsEmulator(tmp_path / "gps", rate_hz=2.0, baudrate=4800)
+        talker.start()
+        got: list = []
+        idle = SerialTransport(str(quiet.path), 4800, gps.NmeaDecoder(), got.append)
+        tr = SerialTransport(str(talker.path), 4800, gps.NmeaDecoder(), got.append)
+        reads = 0
+        feed = tr.decoder.feed
+
+        def counting(data: bytes, t: float) -> list:
+            nonlocal reads
+            reads += 1
+            return feed(data, t)
+
+        tr.decoder.feed = counting  # type: ignore[method-assign]
+        idle.start()
+        tr.start()
+        await _until(lambda: tr.health.connected and idle.health.connected)
+        await asyncio.sleep(3.0)
+        assert idle.health.opens == 1 and idle.health.reconnects == 0
+        assert tr.health.reconnects == 0
+        assert sum(isinstance(r, Gps) for r in got) >= 2
+        assert reads <= 3.0 / 0.02 + 2
+        await tr.stop()
+        await idle.stop()
+        quiet.close()
+        talker.close()
+
+    asyncio.run(main())
