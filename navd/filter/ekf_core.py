@@ -1,0 +1,64 @@
+"""The state the default mode's EKF is built on (navd/filter/ekf.py): the nominal state,
+its error covariance in metres, and the algebra between them.
+
+    nominal  x = (lat, lon, c_n, c_e, b, s, o_n, o_e)
+    error   dx = (dn, de, dc_n, dc_e, db, ds, do_n, do_e)
+             metres, m/s, radians, scale, metres
+
+Its parts, as AP_NavEKF3 splits its core: this state; range fusion and
+re-acquisition (navd/filter/ekf_ranges.py); prediction, GPS fusion and the outputs
+(navd/filter/ekf.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navd import geodesy
+from navd.filter.common import History
+from navd.filter.track import RecentTrack
+from navd.settings import NoiseConfig
+
+N_STATES = 8
+# Recent ranges the re-acquisition fit looks at, and the dead-reckoned track kept to
+# place them (also the round-trip geometry of each range).
+WINDOW_S = 300.0
+
+
+class EkfCore:
+    def __init__(self, noise: NoiseConfig, max_current_mps: float) -> None:
+        self.noise = noise
+        self.max_current = max_current_mps
+        self.x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+        self.P = np.eye(N_STATES)
+        # the beacon whose reported-position error the offset states track, and its model
+        self.primary: str | None = None
+        self._off_std = 0.0
+        self._off_tau = math.inf
+        self.initialised = False
+        self.history = History()
+        self.t_anchor = 0.0  # when the position was last pinned (GPS, re-acquisition)
+        self.t = 0.0
+        self.track = RecentTrack(WINDOW_S)
+
+    def _limit_current(self) -> None:
+        """Hold the current to what water can do at this site (``max_current_mps``)."""
+        speed = math.hypot(float(self.x[2]), float(self.x[3]))
+        if speed > self.max_current:
+            self.x[2:4] *= self.max_current / speed
+
+    def _apply(self, dx: np.ndarray, hd: float) -> None:
+        self.x = self.state_apply(self.x, dx, hd)
+
+    def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        e, n, _ = geodesy.enu_offset(b[0], b[1], 0.0, a[0], a[1], 0.0)
+        d = a - b
+        d[0], d[1] = n, e
+        return d
+
+    def state_apply(self, x: np.ndarray, dx: np.ndarray, hd: float = 0.0) -> np.ndarray:
+        y = x + dx
+        y[0], y[1] = geodesy.offset_position(float(x[0]), float(x[1]), dx[0], dx[1], hd)
+        return y

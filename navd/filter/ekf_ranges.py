@@ -1,0 +1,236 @@
+"""Range fusion for the default mode's EKF: the round trip's geometry, the gate, and
+re-acquisition from consistent evidence.
+
+* Range geometry of the round trip: the request left at ``t_ping`` from where the
+  vehicle was then and the reply reached it at ``t``; the predicted range is the mean
+  of the out and back legs, the ping end found by undoing the dead-reckoned motion
+  since ``t_ping`` (navd/filter/track.py), with its dependence on the current.
+* Innovation gate on nu^2 / S (chi-square, one degree of freedom) instead of the
+  thesis' one-sigma radius, tighter for ranges that read long (multipath only
+  lengthens a path).  The gate follows the covariance (seed 003, 4.2.4), so a filter
+  that has dead reckoned for long accepts wider.
+* Re-acquisition from consistent evidence: when ``reacquire_after`` of the last
+  ``2 * reacquire_after`` ranges were rejected, a robust fit over the recent
+  ranges (``navd/filter/reacquire.py``) looks for the position and current
+  correction most of them agree on.  Only such a correction is applied, with the
+  fit's covariance; a burst of mutually inconsistent long replies finds none and
+  changes nothing.  The current it learns is bounded by ``max_current_mps``.
+* The beacon's reported-position error: the first beacon heard has its own states
+  (``o_n, o_e``); others add their position error to the range variance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from navd import geodesy
+from navd.filter import reacquire
+from navd.filter.common import GateDecision, RangeMeas, joseph_update
+from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
+from navd.filter.integrity import chi2_quantile
+from navd.settings import NoiseConfig
+
+_WINDOW_RANGES = 12
+_HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
+_MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
+_REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
+
+
+class RangeFusion(EkfCore):
+    def __init__(
+        self,
+        noise: NoiseConfig,
+        gate_chi2: float,
+        gate_chi2_long: float,
+        reacquire_after: int,
+        max_current_mps: float = 2.0,
+    ) -> None:
+        super().__init__(noise, max_current_mps)
+        self.gate_chi2 = gate_chi2
+        self.gate_chi2_long = gate_chi2_long
+        self.reacquire_after = reacquire_after
+        # recent gate decisions: (accepted, residual); see _reacquire
+        self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
+        self.reacquisitions = 0
+        self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
+        self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
+        self.last_nis = math.nan  # normalised innovation squared of the last range
+        self.last_s = math.nan  # and its innovation variance (m^2)
+        # NIS of the last accepted ranges, and the 99 % bound of their sum (chi-square)
+        self._nis: deque[float] = deque(maxlen=2 * reacquire_after)
+        self._nis_limit = chi2_quantile(0.99, 2 * reacquire_after)
+
+    def _forget_ranges(self) -> None:
+        """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
+        it does not."""
+        self._recent.clear()
+        self._nis.clear()
+        self._window.clear()
+
+    def predicted_range(self, m: RangeMeas) -> tuple[float, np.ndarray]:
+        """Mean of the out and back legs of the round trip, and its Jacobian.
+
+        The filter may already be past ``m.t`` (a reply completes only after its
+        location line): both ends are found by undoing the dead-reckoned motion
+        since them, so a late range is fused at its own time.
+        """
+        lat, lon = float(self.x[0]), float(self.x[1])
+        dn_p, de_p = self.track.displacement_since(m.t_ping)
+        dn_b, de_b = self.track.displacement_since(m.t)
+        lat_p, lon_p = geodesy.offset_position(lat, lon, -dn_p, -de_p, m.vehicle_hd)
+        lat_b, lon_b = geodesy.offset_position(lat, lon, -dn_b, -de_b, m.vehicle_hd)
+        tracked = m.beacon == self.primary
+        b_lat, b_lon = m.beacon_lat, m.beacon_lon
+        if tracked:
+            # where the beacon really is: its report corrected by the estimated offset
+            b_lat, b_lon = geodesy.offset_position(
+                b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd
+            )
+        r_back, gn_b, ge_b = geodesy.range_and_gradient(
+            lat_b, lon_b, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
+        )
+        r_out, gn_o, ge_o = geodesy.range_and_gradient(
+            lat_p, lon_p, m.vehicle_hd, b_lat, b_lon, m.beacon_hd
+        )
+        # each end lies (now - its time) seconds of current drift behind the estimate
+        lag_o = max(0.0, self.t - m.t_ping)
+        lag_b = max(0.0, self.t - m.t)
+        H = np.zeros(N_STATES)
+        H[0] = 0.5 * (gn_o + gn_b)
+        H[1] = 0.5 * (ge_o + ge_b)
+        H[2] = -0.5 * (lag_o * gn_o + lag_b * gn_b)
+        H[3] = -0.5 * (lag_o * ge_o + lag_b * ge_b)
+        if tracked:
+            # moving the beacon moves the range like moving the vehicle the other way
+            H[6] = -H[0]
+            H[7] = -H[1]
+        return 0.5 * (r_out + r_back), H
+
+    def _track_beacon(self, m: RangeMeas) -> None:
+        """Adopt the first beacon heard as the one whose position error is estimated."""
+        if self.primary is not None or m.beacon_position_std_m <= 0.0:
+            return
+        self.primary = m.beacon
+        self._off_std = m.beacon_position_std_m
+        self._off_tau = m.beacon_position_corr_s
+        self.P[6, 6] = self.P[7, 7] = self._off_std**2
+        self.history.widen(self.P.copy())
+
+    def range_update(self, m: RangeMeas) -> GateDecision:
+        self._track_beacon(m)
+        expected, H = self.predicted_range(m)
+        r_var = m.std_m**2
+        if m.beacon != self.primary:
+            # another beacon's position error is not a state: count it as range noise
+            r_var += m.beacon_position_std_m**2
+        residual = m.range_m - expected
+        S = float(H @ self.P @ H) + r_var
+        chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
+        gate_m = math.sqrt(chi2 * S)
+        self.last_s = S
+        self.last_nis = residual * residual / S
+        while self._window and m.t - self._window[0][0].t > WINDOW_S:
+            self._window.popleft()
+        if residual * residual > chi2 * S:
+            self._window.append((m, True))
+            self._recent.append((False, residual))
+            rejected = [r for ok, r in self._recent if not ok]
+            if len(rejected) >= self.reacquire_after:
+                if self._reacquire(m):
+                    return GateDecision(False, residual, gate_m, "gate_reacquire")
+                self.reacquire_refused += 1
+            return GateDecision(False, residual, gate_m, "gate")
+        self._window.append((m, False))
+        self._nis.append(self.last_nis)
+        if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
+            # Accepted, but the recent ranges together say the covariance claims too
+            # much (a drifting estimate whose current prior was too small): test for a
+            # re-acquisition as after a run of rejections.
+            self._nis.clear()
+            if self._reacquire(m, min_rejected=0):
+                return GateDecision(False, residual, gate_m, "gate_reacquire")
+            self.reacquire_refused += 1
+        if residual > _HUBER_K * math.sqrt(S):
+            # A long reply inside the gate may still be multipath: the gate is wide when
+            # the estimate is uncertain.  Weigh it as a Huber M-estimator does, so its
+            # pull is that of a k-sigma residual (and its information less): a long
+            # outlier cannot drag the estimate, a true range still moves it.
+            r_var = residual * math.sqrt(S) / _HUBER_K - (S - r_var)
+        K, self.P, _ = joseph_update(self.P, H, r_var)
+        self._apply(K * residual, m.vehicle_hd)
+        self._limit_current()
+        self._recent.append((True, residual))
+        self.history.correct(self.x.copy(), self.P.copy())
+        return GateDecision(True, residual, gate_m, "ok")
+
+    def _rays(self) -> list[reacquire.Ray]:
+        """The recent ranges seen from the present estimate, for the re-acquisition fit."""
+        lat, lon = float(self.x[0]), float(self.x[1])
+        rays = []
+        for m, rejected in self._window:
+            b_lat, b_lon = m.beacon_lat, m.beacon_lon
+            sigma2 = m.std_m**2 + m.beacon_position_std_m**2
+            if m.beacon == self.primary:
+                b_lat, b_lon = geodesy.offset_position(
+                    b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd
+                )
+            e, n, _ = geodesy.enu_offset(lat, lon, m.vehicle_hd, b_lat, b_lon, m.vehicle_hd)
+            dn_p, de_p = self.track.displacement_since(m.t_ping)
+            dn_b, de_b = self.track.displacement_since(m.t)
+            rays.append(
+                reacquire.Ray(
+                    (n, e, m.beacon_hd - m.vehicle_hd),
+                    (-dn_p, -de_p),
+                    (-dn_b, -de_b),
+                    max(0.0, self.t - m.t_ping),
+                    max(0.0, self.t - m.t),
+                    m.range_m,
+                    math.sqrt(sigma2),
+                    rejected,
+                )
+            )
+        return rays
+
+    def _reacquire(self, m: RangeMeas, min_rejected: int | None = None) -> bool:
+        """Move to the correction the recent ranges agree on; False if they do not agree.
+
+        Consecutive rejections mean either the estimate has gone wrong (the seed's
+        Chesapeake run: current prior too small, every range rejected) or the ranges
+        have (a multipath burst).  Only the first gives ranges that agree with one
+        another on a correction.
+        """
+        hyp = reacquire.find(
+            self._rays(),
+            (float(self.x[2]), float(self.x[3])),
+            self.P[:2, :2].copy(),
+            self.P[2:4, 2:4].copy(),
+            # a drift older than the window would have shown in the ranges before it,
+            # which the covariance already holds
+            min(max(0.0, self.t - self.t_anchor), WINDOW_S),
+            self.max_current,
+            _MIN_SUPPORT,
+            self.reacquire_after if min_rejected is None else min_rejected,
+            _REACQUIRED_STD_M,
+            seed=self.reacquisitions * 7919 + self.reacquire_refused,
+        )
+        if hyp is None:
+            return False
+        dx = np.zeros(N_STATES)
+        dx[:4] = (hyp.d_north, hyp.d_east, hyp.dc_north, hyp.dc_east)
+        self._apply(dx, m.vehicle_hd)
+        # the fit is now what is known of position and current; their correlation with
+        # the other states (bias, scale, beacon offset) came from the estimate it replaced
+        P = self.P.copy()
+        P[:4, :] = 0.0
+        P[:, :4] = 0.0
+        P[:4, :4] = hyp.cov
+        self.P = 0.5 * (P + P.T)
+        self._limit_current()
+        self._forget_ranges()
+        self.t_anchor = m.t
+        self.reacquisitions += 1
+        self.history.correct(self.x.copy(), self.P.copy())
+        return True
