@@ -82,8 +82,8 @@ def test_values_that_would_flood_or_expose_the_vehicle_are_refused(key: str, doc
 class _QuietPub:
     """A publisher that publishes nowhere."""
 
-    errors = 0
-    commands: dict = {}
+    def section(self) -> dict:
+        return {"open": True, "errors": 0, "commands": {}}
 
     def put(self, out: Published) -> bytes:
         return b""
@@ -115,7 +115,7 @@ def test_the_daemon_navigates_while_zenoh_cannot_open(tmp_path: Path) -> None:
         await asyncio.sleep(0.5)
         h = d.health()
         assert any(p.startswith("zenoh: not open (OSError") for p in h.degraded)
-        assert d.ticks >= 3  # the filter ticks without zenoh
+        assert d.times.ticks >= 3  # the filter ticks without zenoh
         await asyncio.sleep(1.0)
         assert d.pub is not None and d.health().zenoh["open"]
         stop.set()
@@ -212,7 +212,7 @@ def test_the_daemon_navigates_while_zenoh_takes_long_to_open(tmp_path: Path) -> 
         stop = asyncio.Event()
         task = asyncio.get_running_loop().create_task(d.run(stop))
         await asyncio.sleep(1.5)
-        assert d.pub is None and d.ticks >= 10  # 10 Hz while zenoh opens
+        assert d.pub is None and d.times.ticks >= 10  # 10 Hz while zenoh opens
         await asyncio.sleep(1.5)
         assert d.pub is not None
         stop.set()

@@ -23,6 +23,7 @@ from typing import Any
 
 from navd import files
 from navd.formats import jsonlines
+from navd.records import Resume, implausible
 from navd.settings import Config
 
 FORMAT = "navd-checkpoint"
@@ -81,6 +82,16 @@ class Checkpoints:
         self.written += 1
         return True
 
+    def section(self, resumed: dict[str, Any] | None) -> dict[str, Any]:
+        """The checkpoints' part of the daemon's health, with what this run resumed from."""
+        return {
+            "file": str(self.path),
+            "written": self.written,
+            "errors": self.errors,
+            "last_error": self.last_error,
+            "resumed": resumed,
+        }
+
     def load(self, max_age_s: float) -> tuple[dict[str, Any] | None, str]:
         """The checkpoint to resume, with its ``age_s``, or None and one line why not
         (empty when there is none at all)."""
@@ -109,3 +120,26 @@ class Checkpoints:
         if age > max_age_s:
             return None, f"checkpoint ignored: {age:.0f} s old (checkpoint.max_age_s {max_age_s:g})"
         return {**doc, "age_s": max(0.0, age)}, ""
+
+
+def number_or_none(v: Any) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+def resume_record(snap: dict[str, Any], t: float) -> Resume | str:
+    """The record that resumes navigation at ``t`` from a loaded checkpoint, or why it
+    cannot (the filter still judges the state itself)."""
+    try:
+        rec = Resume(
+            t,
+            str(snap["mode"]),
+            tuple(float(v) for v in snap["x"]),
+            tuple(float(v) for v in snap["P"]),
+            float(snap["age_s"]),
+            number_or_none(snap.get("surface_bar")),
+            number_or_none(snap.get("surface_alt")),
+            number_or_none(snap.get("depth_m")),
+        )
+    except (KeyError, TypeError, ValueError):
+        return "fields missing or not numbers"
+    return implausible(rec) or rec

@@ -17,24 +17,29 @@ import logging
 import math
 import os
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
 from navd.config import log_dir
-from navd.daemon.checkpoint import Checkpoints, checkpoint_dir, config_digest
+from navd.daemon.checkpoint import (
+    Checkpoints,
+    checkpoint_dir,
+    config_digest,
+    number_or_none,
+    resume_record,
+)
 from navd.daemon.devices import Device, make_devices
 from navd.daemon.devices.base import HealthSections
 from navd.daemon.devices.modem import idle_sections
-from navd.daemon.health import RECENT_S, Vitals
+from navd.daemon.health import RECENT_S, TickTimes, Vitals
 from navd.daemon.publish import BeaconCommand, Command, ResetCommand
 from navd.daemon.sdnotify import Notifier
 from navd.drivers.codec import DecodeStats
 from navd.drivers.transport import SerialTransport
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
-from navd.records import MAX_BEACONS, Reset, Resume, SetBeacon, implausible
+from navd.records import MAX_BEACONS, Reset, SetBeacon
 from navd.schema import Estimate, Health, Output, RangeDecision
 from navd.settings import Config
 
@@ -63,17 +68,6 @@ class _Logged:
     def refeed(self, data: bytes, t: float) -> list[object]:
         """Bytes already logged, fed again after a decoder fault (not logged twice)."""
         return self.inner.feed(data, t)
-
-
-def _number_or_none(v: Any) -> float | None:
-    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
-
-
-def _percentile(xs: list[float], q: float) -> float | None:
-    if not xs:
-        return None
-    s = sorted(xs)
-    return s[min(len(s) - 1, int(q * len(s)))]
 
 
 class Daemon:
@@ -111,10 +105,7 @@ class Daemon:
         )
         self.devices: dict[str, Device] = make_devices(cfg, self)
         self.dt = 1.0 / cfg.navigation.rate_hz
-        self.tick_lateness: deque[float] = deque(maxlen=6000)
-        self.publish_latency: deque[float] = deque(maxlen=6000)
-        self.overruns = 0
-        self.ticks = 0
+        self.times = TickTimes()
         self.fused = 0  # range decisions the filter made: every range should get one
         self.latest: Estimate | None = None
         self._last_watchdog = -math.inf
@@ -168,7 +159,7 @@ class Daemon:
         self.vitals.estimate(self.clock())
         if self.pub is not None:
             self.pub.put(self.latest)
-        self.publish_latency.append(self.clock() - est.t)
+        self.times.publish.append(self.clock() - est.t)
 
     # -- commands from the autopilot (zenoh thread -> loop) -----------------------------
     def on_command(self, cmd: Command) -> str | None:
@@ -229,9 +220,9 @@ class Daemon:
                 await asyncio.sleep(delay)
             now = self.clock()
             late = now - deadline
-            self.tick_lateness.append(late)
+            self.times.lateness.append(late)
             if late > dt_:
-                self.overruns += 1
+                self.times.overruns += 1
                 k = math.floor(now / dt_)  # catch up: the navigator emits every missed tick
             for dev in self.devices.values():
                 dev.on_tick(now)
@@ -239,7 +230,7 @@ class Daemon:
                 self._outputs(self.nav.advance(k * dt_))
             except Exception as exc:
                 self._navigator_failed(exc)
-            self.ticks += 1
+            self.times.ticks += 1
             if (
                 self.notifier.watchdog_s
                 and now - self._last_watchdog >= self.notifier.watchdog_s / 2
@@ -319,7 +310,6 @@ class Daemon:
         own.update(idle_sections())
         for dev in self.devices.values():
             own.update(dev.sections())
-        lat = list(self.tick_lateness)
         est = self.latest
         mode = est.mode if est else "waiting_for_gps"
         self.vitals.mode(now, mode)
@@ -354,44 +344,15 @@ class Daemon:
             pings={**own["pings"], "fused": self.fused, "last": list(self.vitals.pings)},
             modem=own["modem"],
             filter=dict(self.nav.counters),
-            ticks=self.ticks,
-            tick_overruns=self.overruns,
-            tick_lateness_ms={
-                "p50": _ms(_percentile(lat, 0.5)),
-                "p99": _ms(_percentile(lat, 0.99)),
-                "max": _ms(max(lat) if lat else None),
-            },
-            # from the tick's deadline to the estimate handed to zenoh
-            publish_latency_ms={
-                "p50": _ms(_percentile(list(self.publish_latency), 0.5)),
-                "p99": _ms(_percentile(list(self.publish_latency), 0.99)),
-            },
-            log={
-                "file": str(self.rlog.path) if self.rlog.path else None,
-                "ok": not (self.rlog.degraded and self.rlog.errors),
-                "lines": self.rlog.lines,
-                "errors": self.rlog.errors,
-                "dropped": self.rlog.dropped,
-                "raw_bytes_over_budget": dict(self.rlog.raw_dropped),
-                "files_removed": self.rlog.removed_files,
-                "last_error": self.rlog.last_error,
-            },
-            checkpoint=None
-            if self.checkpoints is None
-            else {
-                "file": str(self.checkpoints.path),
-                "written": self.checkpoints.written,
-                "errors": self.checkpoints.errors,
-                "last_error": self.checkpoints.last_error,
-                "resumed": self.resumed,
-            },
+            ticks=self.times.ticks,
+            tick_overruns=self.times.overruns,
+            tick_lateness_ms=self.times.lateness_ms(),
+            publish_latency_ms=self.times.publish_ms(),
+            log=self.rlog.section(),
+            checkpoint=None if self.checkpoints is None else self.checkpoints.section(self.resumed),
             zenoh={"open": False, "error": self.zenoh_error}
             if self.pub is None
-            else {
-                "open": True,
-                "errors": self.pub.errors,
-                "commands": dict(self.pub.commands),
-            },
+            else self.pub.section(),
             temperature_c=own["temperature_c"],
             gps_utc=own["gps_utc"],
             esc=own["esc"],
@@ -408,31 +369,17 @@ class Daemon:
                 log.warning("%s", said)
             return
         t = self.clock()
-        try:
-            rec = Resume(
-                t,
-                str(snap["mode"]),
-                tuple(float(v) for v in snap["x"]),
-                tuple(float(v) for v in snap["P"]),
-                float(snap["age_s"]),
-                _number_or_none(snap.get("surface_bar")),
-                _number_or_none(snap.get("surface_alt")),
-                _number_or_none(snap.get("depth_m")),
-            )
-        except (KeyError, TypeError, ValueError):
-            log.warning("checkpoint ignored: %s: fields missing or not numbers", path)
-            return
-        why = implausible(rec)
-        if why is not None:
-            log.warning("checkpoint ignored: %s: %s", path, why)
+        rec = resume_record(snap, t)
+        if isinstance(rec, str):
+            log.warning("checkpoint ignored: %s: %s", path, rec)
             return
         self.feed(rec)  # logged as cmd_resume: a replay of the log resumes the same
         if self.nav.counters.get("resumed"):
             self.resumed = {
                 "t": t,
                 "age_s": round(rec.age_s, 1),
-                "lat": _number_or_none(snap.get("lat")),
-                "lon": _number_or_none(snap.get("lon")),
+                "lat": number_or_none(snap.get("lat")),
+                "lon": number_or_none(snap.get("lon")),
             }
             log.info("resumed navigation from a checkpoint %.0f s old", rec.age_s)
         else:
@@ -493,6 +440,3 @@ class Daemon:
         if self.pub is not None:
             self.pub.close()
 
-
-def _ms(x: float | None) -> float | None:
-    return None if x is None else round(x * 1000.0, 3)

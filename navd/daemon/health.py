@@ -77,3 +77,37 @@ class Vitals:
             if quiet > max(60.0, 6 * self.ping_interval_s):
                 out.append(f"no accepted range for {quiet:.0f} s submerged")
         return out
+
+
+def _percentile(xs: list[float], q: float) -> float | None:
+    if not xs:
+        return None
+    s = sorted(xs)
+    return s[min(len(s) - 1, int(q * len(s)))]
+
+
+def _ms(x: float | None) -> float | None:
+    return None if x is None else round(x * 1000.0, 3)
+
+
+@dataclass(slots=True)
+class TickTimes:
+    """How late the filter's ticks ran, and how soon their estimates reached zenoh
+    (from the tick's deadline), over the last 6,000 of each."""
+
+    lateness: deque[float] = field(default_factory=lambda: deque(maxlen=6000))
+    publish: deque[float] = field(default_factory=lambda: deque(maxlen=6000))
+    overruns: int = 0
+    ticks: int = 0
+
+    def lateness_ms(self) -> dict[str, float | None]:
+        lat = list(self.lateness)
+        return {
+            "p50": _ms(_percentile(lat, 0.5)),
+            "p99": _ms(_percentile(lat, 0.99)),
+            "max": _ms(max(lat) if lat else None),
+        }
+
+    def publish_ms(self) -> dict[str, float | None]:
+        pub = list(self.publish)
+        return {"p50": _ms(_percentile(pub, 0.5)), "p99": _ms(_percentile(pub, 0.99))}

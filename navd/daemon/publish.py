@@ -190,6 +190,10 @@ class Publisher:
             kind: TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST) for kind in ("reset", "beacon")
         }
 
+    def section(self) -> dict[str, Any]:
+        """The open session's part of the daemon's health."""
+        return {"open": True, "errors": self.errors, "commands": dict(self.commands)}
+
     def put(self, out: Published) -> bytes:
         """Publish an output on its key (``auv/<vehicle>/nav/<its type>``)."""
         kind = out.type

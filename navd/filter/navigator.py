@@ -3,8 +3,10 @@
 It is pure: no clock, no I/O.  The daemon feeds it records stamped with their
 arrival time, ``navd replay`` feeds it a log; both get the same outputs for the
 same records.  Inputs (heading, RPM, depth) are held from their last sample
-(zero-order hold) and the filter is propagated to the exact time of every record
-and every tick, so when a record falls between ticks does not change the answer.
+(zero-order hold).  The filter steps to every tick and to the exact time of every
+measurement (a fix, a range, a DVL velocity); over each step it takes the
+time-weighted mean of the inputs held during it (navd/filter/inputs.py), so when an
+input falls between ticks changes the answer only by rounding.
 """
 
 from __future__ import annotations

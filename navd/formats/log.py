@@ -110,6 +110,19 @@ class RecordLog:
                 self.fh.close()
         self.fh = None
 
+    def section(self) -> dict[str, Any]:
+        """The log's part of the daemon's health."""
+        return {
+            "file": str(self.path) if self.path else None,
+            "ok": not (self.degraded and self.errors),
+            "lines": self.lines,
+            "errors": self.errors,
+            "dropped": self.dropped,
+            "raw_bytes_over_budget": dict(self.raw_dropped),
+            "files_removed": self.removed_files,
+            "last_error": self.last_error,
+        }
+
     def record(self, rec: Record) -> None:
         self._write(record_to_json(rec))
 
