@@ -80,7 +80,7 @@ def test_only_the_kalman_modes_are_smoothable() -> None:
     navigator asked to keep one for it smooths nothing rather than raising."""
     from navd.filter import Navigator
     from navd.filter.common import Smoothable
-    from navd.filter.navigator import make_filter
+    from navd.filter.navparts import make_filter
     from navd.records import Gps
     from navd.settings import config_from_dict
 

@@ -1,5 +1,6 @@
 """The navigation filter: pure, deterministic, no I/O and no clock."""
 
-from navd.filter.navigator import Navigator, make_filter
+from navd.filter.navigator import Navigator
+from navd.filter.navparts import make_filter
 
 __all__ = ["Navigator", "make_filter"]

@@ -1,0 +1,67 @@
+"""The navigator's restart while submerged (navd/daemon/checkpoint.py keeps the file):
+what a checkpoint holds, and navigating on from one."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from navd.filter.navparts import NavParts
+from navd.records import Resume
+
+
+class Resuming(NavParts):
+    def snapshot(self) -> dict[str, Any] | None:
+        """What a restart needs to resume navigating (None: nothing to resume yet): the
+        filter's state and covariance, the depth gauge's zero, the water's height."""
+        f = self.filter
+        if not f.initialised:
+            return None
+        x = np.asarray(f.x, dtype=float)
+        return {
+            "mode": self.cfg.navigation.filter,
+            "x": x.tolist(),
+            "P": np.asarray(f.P, dtype=float).ravel().tolist(),
+            "surface_bar": self.depth.zero_bar,
+            "surface_alt": self.surface_altitude,
+            "depth_m": self.depth.m,
+            "lat": math.degrees(float(x[0])),
+            "lon": math.degrees(float(x[1])),
+        }
+
+    def _on_resume(self, rec: Resume) -> None:
+        """Navigate on from a checkpoint: navd restarted (a crash, the watchdog) while
+        the vehicle was away from GPS.  Its position covariance grows with the time
+        the daemon was down, and integrity is degraded until ranges confirm it."""
+        n = len(rec.x)
+        # a new process: what the one before knew is gone (a replay of its log goes on
+        # from here as the daemon did)
+        self._fresh()
+        if rec.mode != self.cfg.navigation.filter or n != len(np.asarray(self.filter.x)):
+            self.counters["resume_refused_mode"] += 1
+            return
+        if len(rec.P) != n * n:
+            self.counters["resume_refused_covariance"] += 1
+            return
+        x = np.array(rec.x, dtype=float)
+        P = np.array(rec.P, dtype=float).reshape(n, n)
+        if not np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) >= -1e-9):
+            self.counters["resume_refused_covariance"] += 1
+            return
+        grow = (self.cfg.checkpoint.drift_mps * rec.age_s) ** 2
+        self.filter.initialise(float(x[0]), float(x[1]), 1.0, rec.t)
+        self.filter.restore(x, P, grow)
+        self._t_filter = rec.t
+        self.dr.reset(float(x[0]), float(x[1]))
+        if rec.surface_bar is not None:
+            self.depth.zero_at(rec.surface_bar)
+        if rec.surface_alt is not None:
+            self.gps.seed_altitude(rec.surface_alt)
+        if rec.depth_m is not None:
+            self.depth.depth(rec.t, rec.depth_m)
+        self.integrity.resumed(
+            f"resumed from a checkpoint {rec.age_s:.0f} s old, not yet confirmed by ranges"
+        )
+        self.counters["resumed"] += 1
