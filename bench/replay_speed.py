@@ -21,11 +21,13 @@ from typing import Any
 
 from bench.common import mode_config, report
 from navd import files
-from navd.analysis.score import score
+from navd.analysis.score import position_rms, score
 from navd.formats import jsonlines
+from navd.formats.outputs import read_outputs
 from navd.hil.scenario import load_scenario, scenario_dir, scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
+from navd.schema import Estimate, RangeDecision
 
 _LENGTHS_S = (600, 3600, 3 * 3600, 24 * 3600)
 
@@ -83,17 +85,19 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
     floor_cmd = [sys.executable, str(Path(__file__).with_name("numpy_floor.py"))]
     floor_cmd += [str(d / "measurements.jsonl"), str(d / "floor.jsonl")]
     floor = min(_run(floor_cmd)[0] for _ in range(runs))
-    floor_rms = score(jsonlines.read(d / "floor.jsonl"), truth).rms_m
+    floor_rms = position_rms(
+        ((o["t"], o["lat"], o["lon"]) for o in jsonlines.read(d / "floor.jsonl")), truth
+    )
     rows = []
     for mode, smooth in (("default", False), ("thesis", False), ("default", True)):
         best = min(_run(_replay_cmd(d, mode, smooth))[0] for _ in range(runs))
-        out = jsonlines.read(d / "out.jsonl")
-        steps = sum(1 for o in out if o["type"] == "estimate")
-        ranges = sum(1 for o in out if o["type"] == "range")
+        out = read_outputs(d / "out.jsonl")
+        steps = sum(1 for o in out if isinstance(o, Estimate))
+        ranges = sum(1 for o in out if isinstance(o, RangeDecision))
         label = mode + (" + RTS smoother" if smooth else "")
         rows.append(
             f"| {label} | {n_lines} | {steps} | {ranges} | {best:.2f} | "
-            f"{out[-1]['t'] / best:,.0f} | {1e6 * best / steps:.0f} | {best / floor:.1f} "
+            f"{out[-1].t / best:,.0f} | {1e6 * best / steps:.0f} | {best / floor:.1f} "
             f"| {score(out, truth).rms_m:.1f} |"
         )
     return [

@@ -142,6 +142,22 @@ def _user(config: zenoh.Config | None) -> str | None:
     return user if isinstance(user, str) else None
 
 
+def _session_or_why(
+    connect: list[str] | None, config: zenoh.Config | None, wait_s: float, user: str | None
+) -> Any:
+    """A session to navd, or :class:`NavUnavailable` saying what to look at."""
+    try:
+        return open_session(connect, config, wait_s)
+    except zenoh.ZError as exc:
+        ask = "is navd listening there"
+        if user:
+            ask += f", and does it know user '{user}' with this password"
+        raise NavUnavailable(
+            f"cannot open a zenoh session to {', '.join(connect or []) or 'navd'}: "
+            f"{str(exc).split(' at /')[0][:120]} ({ask}?)"
+        ) from None
+
+
 class NavClient:
     """One vehicle's navigation over zenoh (keys in docs/zenoh.md), failing safe.
 
@@ -177,18 +193,7 @@ class NavClient:
             config = read_zenoh_file(config_file, "zenoh config")
         self.user = _user(config)
         self._own = session is None
-        if session is None:
-            try:
-                session = open_session(connect, config, open_wait_s)
-            except zenoh.ZError as exc:
-                ask = "is navd listening there"
-                if self.user:
-                    ask += f", and does it know user '{self.user}' with this password"
-                raise NavUnavailable(
-                    f"cannot open a zenoh session to {', '.join(connect or []) or 'navd'}: "
-                    f"{str(exc).split(' at /')[0][:120]} ({ask}?)"
-                ) from None
-        self.session = session
+        self.session = session or _session_or_why(connect, config, open_wait_s, self.user)
         self._subs: list[Any] = []
         self._watchdogs: list[threading.Event] = []
 

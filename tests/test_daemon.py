@@ -142,10 +142,10 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     # health tells the truth: everything connected, nothing degraded
     last = m.health[-1]
     # every range the (paced, 9600-baud) modem delivered reached the filter: its location
-    # line arrives after other sensors' records, and the range is still fused
+    # line arrives after other sensors' records, and the range is still fused, late when
+    # a tick fell inside the line (that path: tests/test_poisoned_inputs.py)
     assert last["pings"]["ranges"] >= 6
     assert last["pings"]["ranges"] - last["pings"]["fused"] <= 1  # one may be in flight
-    assert "ranges_late" in last["filter"]
     assert all(d["connected"] for d in last["devices"].values())
     assert last["devices"]["ahrs"]["rate_hz"] == pytest.approx(20.0, rel=0.1)
     # the devices said who they are: the AHRS its firmware, the ESC its battery

@@ -125,11 +125,11 @@ def test_a_modem_that_never_replies_is_not_ok(tmp_path: Path) -> None:
 def test_no_estimates_is_not_ok_and_starves_the_watchdog(tmp_path: Path) -> None:
     d, clock = _daemon(tmp_path)
     _navigate(d, clock, 5.0)
-    assert d._navigating(clock.t)
+    assert d.vitals.navigating(clock.t, d.nav.filter.initialised)
     clock.t += 18.0  # the loop runs, the ports are open, but no estimate went out
     h = d.health()
     assert not h.ok and any(p.startswith("estimates at 0.0/s") for p in h.degraded)
-    assert not d._navigating(clock.t)
+    assert not d.vitals.navigating(clock.t, d.nav.filter.initialised)
 
 
 def test_a_navigator_that_raises_is_caught_counted_and_restarted(tmp_path: Path) -> None:

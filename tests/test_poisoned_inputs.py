@@ -52,9 +52,13 @@ def _dive(range_delay_s: float) -> tuple[Navigator, list[dict]]:
         if k % 5 == 0:
             out += nav.feed(Attitude(t, 0.0, 0.0, 0.0))
             out += nav.feed(Rpm(t, 1000.0))
-        if k % 1000 == 0:  # a reply every 10 s, 0.2 s after its ping
-            pending.append((t + range_delay_s, Range(t, t - 0.2, 80.0, "udb", *BEACON)))
+        if k % 1000 == 0:
+            # a reply every 10 s, 0.2 s after its ping, its last byte 30 ms before a tick:
+            # its location line, 55 ms long, ends after the filter has stepped past it
+            r = round(t - 0.03, 2)
+            pending.append((r + range_delay_s, Range(r, r - 0.2, 80.0, "udb", *BEACON)))
         if k % 10 == 0:
+            out += nav.advance(t)  # the daemon's 10 Hz tick
             # depth below the surface: the vehicle is submerged
             from navd.records import Depth
 

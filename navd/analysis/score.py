@@ -139,6 +139,21 @@ class TruthAt:
         return {"t": t, **{k: a[k] + w * (b[k] - a[k]) for k in _INTERPOLATED}}
 
 
+def position_rms(
+    points: Iterable[tuple[float, float, float]], truth: list[dict[str, Any]]
+) -> float:
+    """RMS horizontal error (m) of ``(t, lat, lon)`` positions against the truth, over
+    the submerged time, as :func:`score` takes it: for tracks that are not navd's
+    outputs (the numpy floor of bench-replay)."""
+    truth_at = TruthAt(truth)
+    sq = []
+    for t, lat, lon in points:
+        tr = truth_at(t)
+        if tr is not None and tr["depth"] >= _SUBMERGED_DEPTH_M:
+            sq.append(math.hypot(*_ne_error(lat, lon, tr["lat"], tr["lon"])) ** 2)
+    return math.sqrt(sum(sq) / len(sq)) if sq else math.nan
+
+
 def score(outputs: Iterable[Output], truth: list[dict[str, Any]]) -> Score:
     """A mission's outputs against the simulator's truth samples (truth.jsonl)."""
     truth_at = TruthAt(truth)

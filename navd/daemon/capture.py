@@ -51,8 +51,8 @@ def capture(cfg: Config, device: str, seconds: float, out_dir: str | Path) -> Pa
 
     asyncio.run(main())
     dev = daemon.devices[device]
-    if dev.transport is None or dev.transport.health.opens == 0:
-        why = (dev.transport.health.last_error if dev.transport else "") or "never opened"
+    if dev.transport.health.opens == 0:
+        why = dev.transport.health.last_error or "never opened"
         raise ConfigError(f"capture: devices.{device}.port {dev.cfg.url}: {why}")
     return daemon.rlog.path
 

@@ -11,8 +11,10 @@ with one line saying why.
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import hashlib
+import logging
 import math
 import os
 import time
@@ -30,6 +32,7 @@ FORMAT = "navd-checkpoint"
 VERSION = 1
 NAME = "checkpoint.json"
 MAX_BYTES = 64 * 1024
+log = logging.getLogger("navd")
 
 
 def checkpoint_dir(cfg: Config, env: typing.Mapping[str, str]) -> Path | None:
@@ -143,3 +146,47 @@ def resume_record(snap: dict[str, Any], t: float) -> Resume | str:
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"
     return implausible(rec) or rec
+
+
+def resume(
+    store: Checkpoints,
+    max_age_s: float,
+    t: float,
+    feed: Callable[[Resume], None],
+    counters: typing.Mapping[str, int],
+) -> dict[str, Any] | None:
+    """Navigate on from the store's checkpoint, if it is of this vehicle and config and
+    young enough: its record is fed (and so logged, and a replay resumes the same).
+    Returns what was resumed, for health; None, with one line in the journal, if not."""
+    snap, said = store.load(max_age_s)
+    if snap is None:
+        if said:
+            log.warning("%s", said)
+        return None
+    rec = resume_record(snap, t)
+    if isinstance(rec, str):
+        log.warning("checkpoint ignored: %s: %s", store.path, rec)
+        return None
+    feed(rec)
+    if not counters.get("resumed"):
+        log.warning("checkpoint ignored: the filter refused it (%s)", dict(counters))
+        return None
+    log.info("resumed navigation from a checkpoint %.0f s old", rec.age_s)
+    return {
+        "t": t,
+        "age_s": round(rec.age_s, 1),
+        "lat": number_or_none(snap.get("lat")),
+        "lon": number_or_none(snap.get("lon")),
+    }
+
+
+async def keep_writing(
+    store: Checkpoints, every_s: float, snapshot: Callable[[], dict[str, Any] | None]
+) -> None:
+    """A checkpoint every ``every_s``, while the daemon runs."""
+    while True:
+        await asyncio.sleep(every_s)
+        snap = snapshot()  # taken here, between two ticks: one consistent state
+        if snap is not None:
+            # the write ends in an fsync, which an SD card can take 100 ms over
+            await asyncio.to_thread(store.write, snap)

@@ -43,6 +43,14 @@ class Vitals:
     def range_accepted(self, t: float) -> None:
         self.t_range_accepted = t
 
+    def navigating(self, now: float, initialised: bool) -> bool:
+        """Estimates are coming out, or the filter is waiting for its first position
+        (what systemd's watchdog is fed on)."""
+        if not initialised:
+            return True
+        last = self.estimates[-1] if self.estimates else self.t_started
+        return now - last <= 2.0
+
     def estimates_per_s(self, now: float) -> float:
         n = sum(1 for t in self.estimates if now - t <= RATE_WINDOW_S)
         return n / RATE_WINDOW_S

@@ -21,6 +21,7 @@ import asyncio
 import concurrent.futures
 import contextlib
 import json
+import logging
 import math
 import threading
 import time
@@ -38,6 +39,8 @@ from navd.validation import Invalid, build, text
 from navd.zenohconf import read_zenoh_file
 
 _COMMAND_TIMEOUT_S = 2.0
+ZENOH_OPEN_WARN_S = 5.0  # a session not open by then is said in health (it goes on trying)
+log = logging.getLogger("navd")
 _JSON = zenoh.Encoding.APPLICATION_JSON
 
 
@@ -286,3 +289,34 @@ class Publisher:
                 p.undeclare()
         finally:
             self.session.close()
+
+
+async def open_with_retry(
+    factory: Callable[..., Any],
+    on_command: Callable[[Command], str | None],
+    say: Callable[[str], None],
+) -> Any:
+    """The publisher ``factory`` makes, tried until it opens (port in use, bad endpoint,
+    a router that does not answer); ``say`` is told why it is not open yet, and "" once
+    it is.  Navigation and the log do not wait for it."""
+    loop = asyncio.get_running_loop()
+    delay = 1.0
+    while True:
+        try:
+            # zenoh.open blocks (name resolution, a slow file, a router that does not
+            # answer): in a thread, so that navigation never waits for it
+            opening = asyncio.ensure_future(asyncio.to_thread(factory, loop, on_command))
+            while not opening.done():
+                await asyncio.wait({opening}, timeout=ZENOH_OPEN_WARN_S)
+                if not opening.done():
+                    say(f"still opening after {ZENOH_OPEN_WARN_S:g} s")
+            pub = opening.result()
+            say("")
+            log.info("zenoh session open")
+            return pub
+        except Exception as exc:  # zenoh raises its own ZError, and OSError
+            if delay == 1.0:
+                log.error("zenoh: cannot open the session (%s); retrying", exc)
+            say(f"{exc.__class__.__name__}: {exc}"[:200])
+            await asyncio.sleep(delay)
+            delay = min(30.0, delay * 2)

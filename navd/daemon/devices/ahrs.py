@@ -59,7 +59,7 @@ class Ahrs(Device):
         soft-reset and set up again (as after an open): a unit that lost its settings
         in a brown-out streams nothing until told again."""
         tr = self.transport
-        if tr is None or not tr.health.connected:
+        if not tr.health.connected:
             return
         if "firmware" not in self.info and now - self.t_probe_sent > PROBE_WAIT_S:
             # unanswered (a stalled or resetting unit): ask again until it says who it is

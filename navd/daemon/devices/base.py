@@ -29,6 +29,10 @@ class Host(Protocol):
 
     def feed(self, rec: Any) -> None: ...
 
+    def logged(self, name: str, decoder: Any) -> Any:
+        """``decoder`` with the raw bytes it is fed kept in the log first."""
+        ...
+
 
 class HealthSections(TypedDict, total=False):
     """The sections of health's top level that belong to one device (docs/schema.md)."""
@@ -52,7 +56,15 @@ class Device:
         self.cfg = cfg
         self.host = host
         self.decoder = decoder
-        self.transport: SerialTransport | None = None
+        # made here and opened by start(): a device always has its port
+        self.transport = SerialTransport(
+            cfg.url,
+            cfg.baudrate,
+            host.logged(self.name, decoder),
+            self.handle,
+            on_open=self.on_open,
+            clock=host.clock,
+        )
         self.records = 0
         self.recent: deque[float] = deque(maxlen=2000)
         self.device_errors = 0  # the device answered with an error in place of a reading
@@ -88,12 +100,11 @@ class Device:
     # -- the same for all --------------------------------------------------------------
     @property
     def connected(self) -> bool:
-        tr = self.transport
-        return tr is not None and tr.health.connected
+        return self.transport.health.connected
 
     def write(self, data: bytes) -> bool:
         tr = self.transport
-        return tr is not None and tr.health.connected and tr.write(data)
+        return tr.health.connected and tr.write(data)
 
     def handle(self, rec: object) -> None:
         """A record decoded from this device's bytes (the transport's callback)."""
@@ -102,7 +113,7 @@ class Device:
             self.device_errors += 1
             self.t_device_error = self.host.clock()
             self.last_device_error = rec.what
-            if rec.send and self.transport is not None:
+            if rec.send:
                 self.transport.write(rec.send)  # e.g. a Keller that forgot F48 after a blip
             return
         self.records += 1
@@ -130,26 +141,26 @@ class Device:
         return bad1 - bad0, skipped1 - skipped0
 
     def health(self, now: float) -> DeviceHealth:
-        hl = self.transport.health if self.transport else None
+        hl = self.transport.health
         stats = self.decoder.stats
         return DeviceHealth(
-            connected=bool(hl and hl.connected),
-            last_rx_age_s=None if not hl or hl.last_rx is None else round(now - hl.last_rx, 3),
+            connected=hl.connected,
+            last_rx_age_s=None if hl.last_rx is None else round(now - hl.last_rx, 3),
             rate_hz=sum(1 for x in self.recent if now - x <= 5.0) / 5.0,
             records=self.records,
             bad_checksum=stats.bad_checksum,
             bad_frame=stats.bad_frame,
             skipped_bytes=stats.skipped_bytes,
-            reconnects=hl.reconnects if hl else 0,
-            opens=hl.opens if hl else 0,
-            read_errors=hl.read_errors if hl else 0,
-            write_errors=hl.write_errors if hl else 0,
-            last_error=hl.last_error if hl else "",
+            reconnects=hl.reconnects,
+            opens=hl.opens,
+            read_errors=hl.read_errors,
+            write_errors=hl.write_errors,
+            last_error=hl.last_error,
             device_errors=self.device_errors,
             resets=self.resets,
             last_device_error=self.last_device_error,
             info=dict(self.info),
-            internal_errors=dict(hl.internal_errors) if hl else {},
+            internal_errors=dict(hl.internal_errors),
             decode_reasons=dict(stats.reasons),
         )
 
@@ -177,7 +188,7 @@ class Device:
             out.append(
                 f"{n}: device error answers ({self.device_errors}, last: {self.last_device_error})"
             )
-        hl = self.transport.health if self.transport else None
-        if hl and hl.last_internal_error and now - hl.last_internal_error <= RECENT_S:
+        hl = self.transport.health
+        if hl.last_internal_error and now - hl.last_internal_error <= RECENT_S:
             out.append(f"{n}: internal errors {hl.internal_errors}")
         return out
