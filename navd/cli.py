@@ -17,6 +17,13 @@ from navd.config import load_config
 from navd.formats.mlog import LogError
 from navd.settings import ConfigError
 
+if typing.TYPE_CHECKING:
+    import asyncio
+    from collections.abc import Callable
+
+    from navd.daemon.publish import Command, Publisher
+    from navd.settings import Config
+
 #: the modules of optional extras, and the extra that brings each
 _EXTRAS = {
     "matplotlib": "report",
@@ -27,7 +34,7 @@ _EXTRAS = {
 EX_CONFIG = 78  # sysexits.h: a configuration error; navd.service does not restart on it
 
 
-def _config(args: argparse.Namespace, attr: str = "config"):
+def _config(args: argparse.Namespace, attr: str = "config") -> Config:
     return load_config(getattr(args, attr), getattr(args, "site", None) or ())
 
 
@@ -232,7 +239,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EX_CONFIG
     _log_to_stderr(os.environ)
 
-    def publisher(loop, on_command):
+    def publisher(
+        loop: asyncio.AbstractEventLoop, on_command: Callable[[Command], str | None]
+    ) -> Publisher:
         return Publisher(cfg.zenoh, cfg.vehicle.name, loop, on_command)
 
     async def main() -> None:
@@ -499,7 +508,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return args.func(args)
+        rc: int = args.func(args)
+        return rc
     except (ConfigError, LogError) as exc:
         print(f"navd: {exc}", file=sys.stderr)
         return 2

@@ -27,7 +27,7 @@ from typing import Any
 import zenoh
 
 from navd.formats import jsonlines
-from navd.schema import Advisory, Estimate, RangeDecision, from_dict
+from navd.schema import Advisory, Estimate, RangeDecision, T, from_dict
 from navd.zenohconf import read_zenoh_file
 
 __all__ = [
@@ -58,7 +58,7 @@ def open_session(
     connect: list[str] | None = None,
     config: zenoh.Config | None = None,
     wait_s: float = OPEN_WAIT_S,
-):
+) -> Any:
     """A zenoh client of ``connect`` (the daemon, or a router), with scouting off.
 
     A client talks only to what it connects to: everything it receives on navd's keys
@@ -89,7 +89,7 @@ def _decode(payload: Any) -> dict[str, Any] | None:
     return obj if isinstance(obj, dict) else None
 
 
-def _typed(cls: Any, payload: Any) -> Any:
+def _typed(cls: type[T], payload: Any) -> T | None:
     """The payload as ``cls``, or None for what is not navd's schema (another
     publisher under the same keys must not raise in zenoh's thread)."""
     d = _decode(payload)
@@ -101,7 +101,7 @@ def _typed(cls: Any, payload: Any) -> Any:
         return None
 
 
-def _typed_callback(cls: Any, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+def _typed_callback(cls: type[T], callback: Callable[[Any], None]) -> Callable[[Any], None]:
     def on_sample(sample: Any) -> None:
         x = _typed(cls, sample.payload)
         if x is not None:
@@ -264,11 +264,12 @@ class NavClient:
                 last[0] = time.monotonic()
                 user_cb(e)
 
-        for kind, cls, callback in (
+        wanted: list[tuple[str, type[Any], Callable[[Any], None] | None]] = [
             ("estimate", Estimate, on_estimate),
             ("range", RangeDecision, on_range),
             ("advisory", Advisory, on_advisory),
-        ):
+        ]
+        for kind, cls, callback in wanted:
             if callback is not None:
                 self._subs.append(
                     self.session.declare_subscriber(

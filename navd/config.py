@@ -45,9 +45,8 @@ def read_with_overlays(p: Path, depth: int = 0) -> dict[str, Any]:
     """
     if depth > MAX_OVERLAY_DEPTH:
         raise ConfigError(f"{p}: overlays nested deeper than {MAX_OVERLAY_DEPTH} (a loop?)")
-    data = _read_yaml(p)
-    if data is None:
-        data = {}
+    raw = _read_yaml(p)
+    data: dict[str, Any] = {} if raw is None else raw
     if not isinstance(data, dict):
         raise ConfigError(f"{p}: expected a mapping of sections, got {type(data).__name__}")
     names = data.pop("overlays", [])

@@ -120,7 +120,7 @@ class BoundedLoader(yaml.SafeLoader):
         super().__init__(stream)
         self._depth = 0
 
-    def compose_node(self, parent: Any, index: Any) -> Any:  # type: ignore[override]
+    def compose_node(self, parent: Any, index: Any) -> Any:
         self._depth += 1
         try:
             if self._depth > MAX_YAML_DEPTH:
@@ -128,7 +128,7 @@ class BoundedLoader(yaml.SafeLoader):
                 raise YamlTooLarge(
                     f"line {mark.line + 1}: nested deeper than {MAX_YAML_DEPTH} levels"
                 )
-            return super().compose_node(parent, index)  # type: ignore[no-untyped-call]
+            return super().compose_node(parent, index)
         finally:
             self._depth -= 1
 
@@ -138,10 +138,12 @@ class BoundedLoader(yaml.SafeLoader):
             return LongInteger(digits)  # refused by the schema, which names its key
         return super().construct_yaml_int(node)
 
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+    def construct_mapping(
+        self, node: yaml.MappingNode, deep: bool = False
+    ) -> dict[Any, Any]:
         seen: set[Any] = set()
         for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            key = self.construct_object(key_node, deep=deep)
             try:
                 dup = key in seen
                 seen.add(key)
@@ -154,7 +156,7 @@ class BoundedLoader(yaml.SafeLoader):
 
 BoundedLoader.add_constructor(
     "tag:yaml.org,2002:int",
-    BoundedLoader.construct_yaml_int,  # type: ignore[arg-type]
+    BoundedLoader.construct_yaml_int,
 )
 
 
@@ -183,7 +185,7 @@ def parse_yaml(text: str) -> Any:
     """One YAML document within the bounds; raises ``yaml.YAMLError`` saying where."""
     loader = BoundedLoader(text)
     try:
-        node = loader.get_single_node()  # type: ignore[no-untyped-call]
+        node = loader.get_single_node()
         if node is None:
             return None
         where = _over_budget(node, MAX_YAML_NODES)
@@ -192,11 +194,11 @@ def parse_yaml(text: str) -> Any:
                 f"{where}: expands to more than {MAX_YAML_NODES} values (aliases repeated"
                 " too often)"
             )
-        return loader.construct_document(node)  # type: ignore[no-untyped-call]
+        return loader.construct_document(node)
     except RecursionError:
         raise YamlTooLarge("nested too deeply") from None
     finally:
-        loader.dispose()  # type: ignore[no-untyped-call]
+        loader.dispose()
 
 
 def yaml_error_line(exc: yaml.YAMLError) -> str:

@@ -142,8 +142,8 @@ class NavigationConfig:
 
 @dataclass(frozen=True, slots=True)
 class Beacon:
-    lat: float | None = _num(None, lo=-90.0, hi=90.0)  # type: ignore[arg-type]
-    lon: float | None = _num(None, lo=-180.0, hi=180.0)  # type: ignore[arg-type]
+    lat: float | None = _num(None, lo=-90.0, hi=90.0)
+    lon: float | None = _num(None, lo=-180.0, hi=180.0)
     depth: float = _num(0.0, lo=0.0, hi=11000.0)
     turnaround_s: float = _num(0.0, lo=0.0, hi=10.0)
     # one-sigma horizontal error of the position the beacon reports (its GPS, the
@@ -163,10 +163,10 @@ class SiteConfig:
     # take the surface pressure from readings while GPS has a fix (before each dive)
     surface_pressure_from_gps: bool = True
     gravity_mps2: float = _num(9.80665, lo=9.7, hi=9.9)
-    surface_altitude_m: float | None = _num(None, lo=-200.0, hi=5000.0)  # type: ignore[arg-type]
+    surface_altitude_m: float | None = _num(None, lo=-200.0, hi=5000.0)
     # the geoid above the ellipsoid here (EGM96 or the chart's), for receivers that give
     # only a height above sea level: their fixes' ellipsoidal height is MSL plus this
-    geoid_separation_m: float | None = _num(None, lo=-150.0, hi=150.0)  # type: ignore[arg-type]
+    geoid_separation_m: float | None = _num(None, lo=-150.0, hi=150.0)
 
 
 @dataclass(frozen=True, slots=True)

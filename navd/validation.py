@@ -27,11 +27,13 @@ def _fail(path: str, msg: str) -> typing.NoReturn:
     raise Invalid(f"{path}: {msg}")
 
 
-def bounds(lo: float | None = None, hi: float | None = None, gt: float | None = None) -> dict:
+def bounds(
+    lo: float | None = None, hi: float | None = None, gt: float | None = None
+) -> dict[str, float | None]:
     return {"lo": lo, "hi": hi, "gt": gt}
 
 
-def number(default: float, **kw: float) -> Any:
+def number(default: float | None, **kw: float) -> Any:
     """A numeric field with its allowed range: ``lo``, ``hi`` (inclusive), ``gt``."""
     return field(default=default, metadata=bounds(**kw))
 
@@ -79,7 +81,7 @@ class LongInteger:
         return f"<an integer of {self.digits} digits>"
 
 
-def check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float | int:
+def check_number(value: Any, tp: type, meta: typing.Mapping[str, Any], path: str) -> float | int:
     if isinstance(value, LongInteger):
         _fail(path, f"an integer of {value.digits} digits")
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -102,7 +104,7 @@ def check_number(value: Any, tp: type, meta: typing.Mapping, path: str) -> float
     return int(value) if tp is int else float(value)
 
 
-def convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
+def convert(value: Any, tp: Any, meta: typing.Mapping[str, Any], path: str) -> Any:
     """``value`` as the schema type ``tp``, or a one-line :class:`Invalid` naming ``path``."""
     origin = typing.get_origin(tp)
     if origin in (typing.Union, types.UnionType):
@@ -132,7 +134,7 @@ def convert(value: Any, tp: Any, meta: typing.Mapping, path: str) -> Any:
     raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
 
 
-def _list(value: Any, tp: Any, meta: typing.Mapping, path: str) -> list[Any]:
+def _list(value: Any, tp: Any, meta: typing.Mapping[str, Any], path: str) -> list[Any]:
     if not isinstance(value, list):
         _fail(path, f"expected a list, got {type(value).__name__}")
     (it,) = typing.get_args(tp)
@@ -151,7 +153,7 @@ def _mapping(value: Any, tp: Any, path: str) -> dict[str, Any]:
     return out
 
 
-def _text(value: Any, meta: typing.Mapping, path: str) -> str:
+def _text(value: Any, meta: typing.Mapping[str, Any], path: str) -> str:
     if not isinstance(value, str):
         _fail(path, f"expected a string, got {type(value).__name__} {show(value)}")
     pattern = meta.get("pattern")

@@ -35,7 +35,7 @@ from navd.daemon.publish import BeaconCommand, Command, ResetCommand, open_with_
 from navd.daemon.resets import ResetRule
 from navd.daemon.sdnotify import Notifier
 from navd.daemon.status import every_second, health_of
-from navd.drivers.codec import DecodeStats
+from navd.drivers.codec import Decoder, DecodeStats
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
 from navd.records import MAX_BEACONS, Reset, SetBeacon
@@ -50,7 +50,7 @@ STOP_TIMEOUT_S = 10.0  # inside the unit's TimeoutStopSec (15 s): the log is clo
 class _Logged:
     """A decoder wrapper that logs the raw bytes before decoding them."""
 
-    def __init__(self, name: str, inner: Any, rlog: RecordLog) -> None:
+    def __init__(self, name: str, inner: Decoder, rlog: RecordLog) -> None:
         self.name, self.inner, self.rlog = name, inner, rlog
         self.stats: DecodeStats = inner.stats  # the same counters, not a copy
 

@@ -54,11 +54,11 @@ class EkfCore:
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         e, n, _ = geodesy.enu_offset(b[0], b[1], 0.0, a[0], a[1], 0.0)
-        d = a - b
+        d: np.ndarray = a - b
         d[0], d[1] = n, e
         return d
 
     def state_apply(self, x: np.ndarray, dx: np.ndarray, hd: float = 0.0) -> np.ndarray:
-        y = x + dx
+        y: np.ndarray = x + dx
         y[0], y[1] = geodesy.offset_position(float(x[0]), float(x[1]), dx[0], dx[1], hd)
         return y

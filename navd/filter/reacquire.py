@@ -130,7 +130,8 @@ class _Rays:
 
     def inliers(self, th: np.ndarray) -> np.ndarray:
         pred, _ = self.predict(th, np.arange(len(self.z)))
-        return np.abs(self.z - pred) <= _INLIER_SIGMA * self.sig
+        inside: np.ndarray = np.abs(self.z - pred) <= _INLIER_SIGMA * self.sig
+        return inside
 
 
 def _drift_prior(
@@ -157,7 +158,8 @@ def _drift_prior(
     cov_d = pos_cov + (slack * slack + 1.0) * np.eye(2)
     W = np.linalg.inv(cov_d)
     A = np.hstack([np.eye(2), -since_s * np.eye(2)])  # d - since * dc
-    return A.T @ W @ A + np.diag([0.0, 0.0, 1.0 / sc2, 1.0 / sc2])
+    info: np.ndarray = A.T @ W @ A + np.diag([0.0, 0.0, 1.0 / sc2, 1.0 / sc2])
+    return info
 
 
 def find(

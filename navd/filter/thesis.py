@@ -202,11 +202,11 @@ class ThesisEKF:
         return self.estimate_of(self.x, self.P)
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        d = a - b
+        d: np.ndarray = a - b
         d[1] = geodesy.wrap_lon(d[1])
         return d
 
     def state_apply(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        y = x + dx
+        y: np.ndarray = x + dx
         y[1] = geodesy.wrap_lon(y[1])
         return y

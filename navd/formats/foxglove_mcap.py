@@ -21,7 +21,8 @@ from typing import Any
 
 from navd.formats.jsonschema import schema_of
 from navd.formats.mission import Mission
-from navd.formats.mlog import TYPE_NAMES, record_to_json
+from navd.formats.mlog import record_to_json
+from navd.records import TYPE_NAMES
 from navd.schema import Estimate, Health, RangeDecision, to_dict
 
 

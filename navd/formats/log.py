@@ -89,9 +89,12 @@ class RecordLog:
                 self._fail(exc)
                 self.dropped += 1
                 return
+        fh = self.fh
+        if fh is None:
+            return  # pragma: no cover - _open either set it or raised
         try:
             line = jsonlines.dumps_line(obj)
-            self.fh.write(line)  # type: ignore[union-attr]
+            fh.write(line)
         except (OSError, ValueError, TypeError) as exc:
             self._fail(exc)
             self.dropped += 1

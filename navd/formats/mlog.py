@@ -73,7 +73,7 @@ class _Bad(Exception):
     pass
 
 
-def _num(obj: dict, key: str) -> float:
+def _num(obj: dict[str, Any], key: str) -> float:
     """A number field; its bounds are checked on the whole record (records.implausible)."""
     if key not in obj:
         raise _Bad(f"missing field '{key}'")
@@ -85,31 +85,31 @@ def _num(obj: dict, key: str) -> float:
     return float(v)
 
 
-def _opt(obj: dict, key: str) -> float | None:
+def _opt(obj: dict[str, Any], key: str) -> float | None:
     if obj.get(key) is None:
         return None
     return _num(obj, key)
 
 
-def _str(obj: dict, key: str) -> str:
+def _str(obj: dict[str, Any], key: str) -> str:
     v = obj.get(key)
     if not isinstance(v, str) or not v:
         raise _Bad(f"field '{key}' must be a non-empty string")
     return v
 
 
-def _beacon_name(obj: dict) -> str:
+def _beacon_name(obj: dict[str, Any]) -> str:
     name = _str(obj, "beacon")
     if not BEACON_NAME.fullmatch(name):
         raise _Bad("field 'beacon': 1 to 32 letters, digits, '_', '.' or '-' (as the command)")
     return name
 
 
-def _beacon_fields(obj: dict) -> tuple[float | None, float | None, float | None]:
+def _beacon_fields(obj: dict[str, Any]) -> tuple[float | None, float | None, float | None]:
     return _opt(obj, "beacon_lat"), _opt(obj, "beacon_lon"), _opt(obj, "beacon_depth")
 
 
-def _parse_gps(o: dict, t: float) -> Gps:
+def _parse_gps(o: dict[str, Any], t: float) -> Gps:
     fix = o.get("fix")
     if isinstance(fix, bool) or not isinstance(fix, int) or fix not in (0, 1, 2):
         raise _Bad("field 'fix' must be 0, 1 or 2")
@@ -130,7 +130,7 @@ def _parse_gps(o: dict, t: float) -> Gps:
     )
 
 
-def _numbers(obj: dict, key: str, max_len: int = 256) -> tuple[float, ...]:
+def _numbers(obj: dict[str, Any], key: str, max_len: int = 256) -> tuple[float, ...]:
     v = obj.get(key)
     if not isinstance(v, list) or not v or len(v) > max_len:
         raise _Bad(f"field '{key}' must be a list of at most {max_len} numbers")
@@ -142,7 +142,7 @@ def _numbers(obj: dict, key: str, max_len: int = 256) -> tuple[float, ...]:
     return tuple(out)
 
 
-def _parse_resume(o: dict, t: float) -> Resume:
+def _parse_resume(o: dict[str, Any], t: float) -> Resume:
     mode = o.get("mode")
     if mode not in ("default", "thesis", "vlbl"):
         raise _Bad("field 'mode' must be default, thesis or vlbl")
@@ -156,7 +156,7 @@ def _parse_resume(o: dict, t: float) -> Resume:
     )
 
 
-def _parse_range(o: dict, t: float) -> Range:
+def _parse_range(o: dict[str, Any], t: float) -> Range:
     return Range(
         t,
         _num(o, "t_ping"),
@@ -168,13 +168,13 @@ def _parse_range(o: dict, t: float) -> Range:
     )
 
 
-def _parse_tt(o: dict, t: float) -> TravelTime:
+def _parse_tt(o: dict[str, Any], t: float) -> TravelTime:
     return TravelTime(
         t, _num(o, "t_ping"), _num(o, "twtt_s"), _str(o, "beacon"), *_beacon_fields(o)
     )
 
 
-_PARSERS: dict[str, Callable[[dict, float], Record]] = {
+_PARSERS: dict[str, Callable[[dict[str, Any], float], Record]] = {
     "heading": lambda o, t: Heading(t, _num(o, "deg")),
     "attitude": lambda o, t: Attitude(
         t, _num(o, "roll_deg"), _num(o, "pitch_deg"), _num(o, "yaw_deg")

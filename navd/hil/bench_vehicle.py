@@ -14,7 +14,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from navd.formats import jsonlines
 
@@ -51,7 +51,7 @@ def replay_against_live(logs: list[Path], config: Path, out: Path) -> ReplayChec
     return ReplayCheck(r.returncode, r.stderr, len(live), len(common), worst)
 
 
-def log_objects(path: Path) -> list[dict]:
+def log_objects(path: Path) -> list[dict[str, Any]]:
     """The JSON objects of a log, without a line the daemon was writing when it was cut
     short (a full disk, a kill): replay skips those too."""
     out = []
@@ -99,7 +99,7 @@ class BenchVehicle:
         if faults is not None:
             args += ["--faults", str(faults)]
         self.hil = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
-        self._procs: list[subprocess.Popen] = [self.hil]  # the daemon goes first, when started
+        self._procs: list[subprocess.Popen[Any]] = [self.hil]  # the daemon goes first, when started
         try:
             assert self.hil.stderr is not None
             # navd-hil writes one line once the emulators serve their ports
@@ -118,7 +118,7 @@ class BenchVehicle:
             self.kill()  # never leave an emulator running behind a failed start
             raise
 
-    def _start_navd(self) -> subprocess.Popen:
+    def _start_navd(self) -> subprocess.Popen[bytes]:
         navd = [str(BIN / "navd")]
         if self.profile is not None:
             navd = [sys.executable, "-m", "cProfile", "-o", str(self.profile), "-m", "navd.cli"]

@@ -156,7 +156,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
                 started = True
                 H = np.zeros((2, n_states))
                 H[0, 0] = H[1, 1] = 1.0
-                S = H @ P @ H.T + np.eye(2) * float(arg) ** 2  # type: ignore[arg-type]
+                S = H @ P @ H.T + np.eye(2) * float(arg) ** 2
                 P = P - P @ H.T @ np.linalg.solve(S, H @ P)
             elif started:
                 j = min(len(tr) - 1, int(round(t * rate)))

@@ -7,10 +7,14 @@ the mission.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from navd.hil.world import Mission
 
 
-def modem_range_fn(mission: Mission, t0: float):
+def modem_range_fn(
+    mission: Mission, t0: float
+) -> Callable[[float], tuple[float, float, float | None, float | None, float | None] | None]:
     """A ``range_to`` for the modem emulator (ModemEmulator) from the mission's channel."""
 
     def range_to(

@@ -17,7 +17,7 @@ from navd import files
 from navd.settings import ConfigError, build
 
 
-def _f(default: float, **kw: float) -> Any:
+def _f(default: float | None, **kw: float) -> Any:
     return field(default=default, metadata=kw)
 
 
@@ -25,9 +25,9 @@ def _f(default: float, **kw: float) -> Any:
 class Leg:
     heading_deg: float = _f(0.0, lo=-360.0, hi=360.0)  # true heading
     duration_s: float = _f(60.0, gt=0.0)
-    speed_mps: float | None = _f(None, lo=0.0, hi=5.0)  # type: ignore[arg-type]
+    speed_mps: float | None = _f(None, lo=0.0, hi=5.0)
     # the leg's depth, when not the vehicle's (0: a surfacing for GPS)
-    depth_m: float | None = _f(None, lo=0.0, hi=500.0)  # type: ignore[arg-type]
+    depth_m: float | None = _f(None, lo=0.0, hi=500.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,6 +18,7 @@ water's.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -379,7 +380,9 @@ class AcousticChannel:
         hd = self.h0 - self.sc.boat.transducer_depth_m
         return (1 - w) * _ecef(la0, lo0, hd) + w * _ecef(la1, lo1, hd)
 
-    def _round_trip(self, t_ping: float, target_at, turnaround: float) -> tuple[float, float]:
+    def _round_trip(
+        self, t_ping: float, target_at: Callable[[float], np.ndarray], turnaround: float
+    ) -> tuple[float, float]:
         """Times the target hears the ping and the vehicle hears the reply (fixed points)."""
         c = self.c_water
         pv = self.vehicle_at(t_ping)

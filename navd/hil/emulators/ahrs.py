@@ -12,6 +12,7 @@ import asyncio
 import math
 import struct
 import time
+from pathlib import Path
 
 from navd.hil.emulators.base import Emulator
 
@@ -27,7 +28,7 @@ def _with_sum(body: bytes) -> bytes:
 class AhrsEmulator(Emulator):
     def __init__(
         self,
-        path,
+        path: str | Path,
         seed: int = 0,
         baudrate: int | None = None,
         firmware: int = 1134,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import random
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -69,7 +70,7 @@ class Emulator:
         else:
             self.send(frame)
 
-    def every(self, period_s: float, fn) -> None:
+    def every(self, period_s: float, fn: Callable[[], None]) -> None:
         async def loop() -> None:
             nxt = time.monotonic()
             while True:

@@ -10,6 +10,8 @@ answer).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from navd.hil.emulators.base import Emulator
 
 _RAW_FULL = 2042.0
@@ -21,7 +23,7 @@ _SCALE = {0: 20.0, 2: 50.0, 5: 20416.66, 6: 30.0}
 class CastleEmulator(Emulator):
     def __init__(
         self,
-        path,
+        path: str | Path,
         pole_pairs: int = 1,
         seed: int = 0,
         baudrate: int | None = None,

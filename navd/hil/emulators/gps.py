@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import datetime as dt
 from functools import reduce
+from pathlib import Path
 
 from navd.hil.emulators.base import Emulator
 
@@ -32,7 +33,7 @@ def _dm(value: float, is_lat: bool) -> tuple[str, str]:
 class GpsEmulator(Emulator):
     def __init__(
         self,
-        path,
+        path: str | Path,
         seed: int = 0,
         rate_hz: float = 1.0,
         baudrate: int | None = None,

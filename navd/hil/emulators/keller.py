@@ -10,6 +10,7 @@ that hands every request back (LSTS DUNE, Sensors/Keller).
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 
 from navd.hil.emulators.base import Emulator
 
@@ -30,7 +31,7 @@ def _crc(data: bytes) -> bytes:
 class KellerEmulator(Emulator):
     def __init__(
         self,
-        path,
+        path: str | Path,
         addr: int = 250,
         seed: int = 0,
         baudrate: int | None = None,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable
+from pathlib import Path
 
 from navd.hil.emulators.base import Emulator
 
@@ -28,7 +29,7 @@ RangeFn = Callable[[float], tuple[float, float, float | None, float | None, floa
 class ModemEmulator(Emulator):
     def __init__(
         self,
-        path,
+        path: str | Path,
         range_to: RangeFn,
         own_addr: int = 1,
         seed: int = 0,

@@ -94,8 +94,9 @@ class PtyPort:
         with contextlib.suppress(Exception):
             asyncio.get_running_loop().remove_reader(self.master)
         for fd in (self.master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)  # type: ignore[arg-type]
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
         self.master = self._slave = None
         self._out.clear()  # what was on the wire is lost with the cable
         with contextlib.suppress(FileNotFoundError):
