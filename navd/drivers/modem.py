@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, replace
+from enum import StrEnum
 
 from navd.drivers.codec import DecodeStats
 
@@ -68,6 +69,23 @@ class ModemRange:
     speed_mps: float | None = None  # its relative speed to the remote
 
 
+class Mode(StrEnum):
+    """What the modem said of its mode (strings, as health publishes them)."""
+
+    UNKNOWN = "unknown"
+    COMMAND = "command"
+    ONLINE = "online"
+    LOWPOWER = "lowpower"
+
+
+class Reply(StrEnum):
+    """How a command ended."""
+
+    OK = "ok"
+    REFUSED = "refused"
+    NO_REPLY = "no_reply"
+
+
 @dataclass(frozen=True, slots=True)
 class ModemMode:
     """What the modem said of its mode: ``command`` (its shell prompt, or ``+++``
@@ -75,7 +93,7 @@ class ModemMode:
     commands are data) or ``lowpower`` (a ``Lowpower`` prompt)."""
 
     t: float
-    mode: str
+    mode: Mode
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,7 +102,7 @@ class ModemReply:
     or ``no_reply`` (the remote never answered)."""
 
     t: float
-    status: str
+    status: Reply
 
 
 def _num(b: bytes | None, lo: float, hi: float) -> float | None:
@@ -179,19 +197,19 @@ class ModemDecoder:
             )
             return self._flush()
         if line.upper() == b"OK":
-            return [*self._flush(), ModemReply(t, "ok")]
+            return [*self._flush(), ModemReply(t, Reply.OK)]
         if _ESCAPE_ANSWER.search(line):
-            return [*self._flush(), ModemMode(t, "command")]
+            return [*self._flush(), ModemMode(t, Mode.COMMAND)]
         m = _PROMPT.search(line)
         if m:
             low = m.group(1).lower().startswith(b"lowpower")
-            return [*self._flush(), ModemMode(t, "lowpower" if low else "command")]
+            return [*self._flush(), ModemMode(t, Mode.LOWPOWER if low else Mode.COMMAND)]
         if _CONNECT.search(line):
-            return [*self._flush(), ModemMode(t, "online")]
+            return [*self._flush(), ModemMode(t, Mode.ONLINE)]
         if _REFUSED.search(line):
-            return [*self._flush(), ModemReply(t, "refused")]
+            return [*self._flush(), ModemReply(t, Reply.REFUSED)]
         if _NO_REPLY.search(line):
-            return [*self._flush(), ModemReply(t, "no_reply")]
+            return [*self._flush(), ModemReply(t, Reply.NO_REPLY)]
         out = self._flush()
         if not _IGNORED.search(line):
             self.stats.skip(len(line), "unrecognised")
@@ -202,6 +220,16 @@ class ModemDecoder:
 GUARD_S = 1.3
 #: an escape or an ``AT`` unanswered this long is tried again
 ANSWER_S = 3.0
+
+
+class _Step(StrEnum):
+    """Where the session is in getting the modem to its shell."""
+
+    ESCAPE = "escape"  # to send ``+++`` once the line has been quiet for GUARD_S
+    ESCAPING = "escaping"  # sent; waiting for the prompt
+    CHECK = "check"  # to send ``AT``
+    CHECKING = "checking"  # sent; waiting for ``OK``
+    READY = "ready"  # in command mode: pings may go
 
 
 class ModemSession:
@@ -217,19 +245,19 @@ class ModemSession:
     """
 
     def __init__(self) -> None:
-        self.mode = "unknown"  # what the modem last said: command, online, lowpower
+        self.mode = Mode.UNKNOWN  # what the modem last said
         self.escapes = 0
-        self._step = "escape"  # escape, escaping, check, checking, ready
+        self._step = _Step.ESCAPE
         self._t_tx = -math.inf  # our last write: the guard is silence after it
         self._t_step = -math.inf
         self.t_unready: float | None = None  # since when pings cannot go (None: ready)
 
     @property
     def ready(self) -> bool:
-        return self._step == "ready"
+        return self._step is _Step.READY
 
     def opened(self, t: float) -> None:
-        self.mode = "unknown"
+        self.mode = Mode.UNKNOWN
         self._escape(t)
         self._t_tx = t
 
@@ -238,39 +266,39 @@ class ModemSession:
 
     def lost(self, t: float) -> None:
         """A command the modem never answered, not even with ``Response Not Received.``."""
-        self.mode = "unknown"
+        self.mode = Mode.UNKNOWN
         self._escape(t)
 
     def seen(self, rec: ModemMode | ModemReply) -> None:
         if isinstance(rec, ModemMode):
             self.mode = rec.mode
-            if rec.mode != "command":
+            if rec.mode != Mode.COMMAND:
                 self._escape(rec.t)
-            elif self._step in ("escape", "escaping"):
-                self._step = "check"
-        elif rec.status == "ok" and self._step == "checking":
-            self.mode = "command"
-            self._step = "ready"
+            elif self._step in (_Step.ESCAPE, _Step.ESCAPING):
+                self._step = _Step.CHECK
+        elif rec.status == Reply.OK and self._step is _Step.CHECKING:
+            self.mode = Mode.COMMAND
+            self._step = _Step.READY
             self.t_unready = None
 
     def _escape(self, t: float) -> None:
-        if self._step == "ready" or self.t_unready is None:
+        if self._step is _Step.READY or self.t_unready is None:
             self.t_unready = t
-        self._step = "escape"
+        self._step = _Step.ESCAPE
 
     def poll(self, t: float) -> bytes:
         """What to send now (often nothing)."""
-        if self._step == "escape" and t - self._t_tx >= GUARD_S:
-            self._step, self._t_step = "escaping", t
+        if self._step is _Step.ESCAPE and t - self._t_tx >= GUARD_S:
+            self._step, self._t_step = _Step.ESCAPING, t
             self.escapes += 1
             return self._sent(t, b"+++\r")
-        if self._step == "escaping" and t - self._t_step >= ANSWER_S:
-            self._step = "check"  # no prompt came: it may be in command mode already
-        if self._step == "check":
-            self._step, self._t_step = "checking", t
+        if self._step is _Step.ESCAPING and t - self._t_step >= ANSWER_S:
+            self._step = _Step.CHECK  # no prompt came: it may be in command mode already
+        if self._step is _Step.CHECK:
+            self._step, self._t_step = _Step.CHECKING, t
             return self._sent(t, b"AT\r")
-        if self._step == "checking" and t - self._t_step >= ANSWER_S:
-            self._step = "escape"  # AT unanswered: online, or asleep
+        if self._step is _Step.CHECKING and t - self._t_step >= ANSWER_S:
+            self._step = _Step.ESCAPE  # AT unanswered: online, or asleep
         return b""
 
     def _sent(self, t: float, data: bytes) -> bytes:

@@ -91,10 +91,10 @@ class ModemPinger(Device):
 
     def _on_reply(self, r: modem.ModemReply) -> None:
         # "OK" follows a range, which already closed the ping; silence or a refusal close it
-        if r.status == "refused":
+        if r.status == modem.Reply.REFUSED:
             self.pings["refused"] += 1  # counted even when no ping was waiting
-        if r.status in ("no_reply", "refused") and self.ping_t is not None:
-            if r.status == "no_reply":
+        if r.status != modem.Reply.OK and self.ping_t is not None:
+            if r.status == modem.Reply.NO_REPLY:
                 self.pings["no_reply"] += 1
             self.host.vitals.ping(r.status)
             self.ping_t = None
