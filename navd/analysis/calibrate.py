@@ -148,15 +148,11 @@ def coverage_deg(headings: Sequence[float]) -> float:
     return 360.0 - max(gaps)
 
 
-def fit(
-    runs: Sequence[Stretch],
-    declination_deg: float,
-    rpm_per_mps: float,
-    deviation: Sequence[float] = (),
-    fit_deviation: bool = True,
-    fit_offset: bool = False,
-) -> Fit:
-    """Fit the unknowns to the stretches (see the module's model)."""
+def _check_support(
+    runs: Sequence[Stretch], fit_deviation: bool, fit_offset: bool
+) -> tuple[int, float]:
+    """The number of unknowns and the headings' coverage (degrees), once the stretches
+    are known to be enough for them."""
     need = 3 + (compass.TERMS if fit_deviation else 0) + (1 if fit_offset else 0)
     if 2 * len(runs) < need + 2:
         raise CalibrationError(
@@ -171,32 +167,49 @@ def fit(
             f"the headings leave a gap of {360.0 - cov:.0f} deg (at most {max_gap:.0f}): "
             + ("run a full circle at the surface" if fit_deviation else "add reciprocal runs")
         )
-    h = np.array([r.compass_deg for r in runs])
-    rpm = np.array([r.rpm for r in runs])
-    g = np.concatenate([[r.vn for r in runs], [r.ve for r in runs]])
-    basis = np.array([compass.basis(x) for x in h])  # n x 5
-    fixed_dev = np.asarray(deviation, dtype=float) if len(deviation) else np.zeros(compass.TERMS)
+    return need, cov
 
-    def unpack(th: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
+
+@dataclass(frozen=True)
+class _Model:
+    """The GPS velocity over ground the unknowns predict for each stretch: north
+    velocities, then east (see the module's model)."""
+
+    h: np.ndarray  # compass headings, degrees
+    rpm: np.ndarray
+    basis: np.ndarray  # the deviation curve's harmonics at each heading, n x TERMS
+    fixed_dev: np.ndarray
+    declination_deg: float
+    fit_deviation: bool
+    fit_offset: bool
+
+    def unpack(self, th: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
+        """Deviation terms, seconds per metre per RPM, speed offset, current n/e."""
         i = 0
-        dev = fixed_dev
-        if fit_deviation:
+        dev = self.fixed_dev
+        if self.fit_deviation:
             dev, i = th[: compass.TERMS], compass.TERMS
         q = th[i]
-        b = th[i + 1] if fit_offset else 0.0
+        b = th[i + 1] if self.fit_offset else 0.0
         cn, ce = th[-2], th[-1]
         return dev, q, b, cn, ce
 
-    def model(th: np.ndarray) -> np.ndarray:
-        dev, q, b, cn, ce = unpack(th)
-        psi = np.radians(h - basis @ dev + declination_deg)
-        s = rpm * q + b
-        return np.concatenate([s * np.cos(psi) + cn, s * np.sin(psi) + ce])
+    def heading_rad(self, dev: np.ndarray) -> np.ndarray:
+        psi: np.ndarray = np.radians(self.h - self.basis @ dev + self.declination_deg)
+        return psi
 
-    th = np.zeros(need)
-    if fit_deviation:
-        th[: compass.TERMS] = fixed_dev
-    th[compass.TERMS if fit_deviation else 0] = 1.0 / rpm_per_mps
+    def __call__(self, th: np.ndarray) -> np.ndarray:
+        dev, q, b, cn, ce = self.unpack(th)
+        psi = self.heading_rad(dev)
+        s = self.rpm * q + b
+        out: np.ndarray = np.concatenate([s * np.cos(psi) + cn, s * np.sin(psi) + ce])
+        return out
+
+
+def _gauss_newton(model: _Model, th: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares unknowns from ``th``, and the Jacobian at the last step
+    (central differences)."""
+    jac = np.empty((g.size, th.size))
     for _ in range(30):
         r = model(th) - g
         jac = np.empty((g.size, th.size))
@@ -208,6 +221,36 @@ def fit(
         th = th + step
         if float(np.max(np.abs(step))) < 1e-10:
             break
+    return th, jac
+
+
+def fit(
+    runs: Sequence[Stretch],
+    declination_deg: float,
+    rpm_per_mps: float,
+    deviation: Sequence[float] = (),
+    fit_deviation: bool = True,
+    fit_offset: bool = False,
+) -> Fit:
+    """Fit the unknowns to the stretches (see the module's model)."""
+    need, cov = _check_support(runs, fit_deviation, fit_offset)
+    h = np.array([r.compass_deg for r in runs])
+    g = np.concatenate([[r.vn for r in runs], [r.ve for r in runs]])
+    fixed_dev = np.asarray(deviation, dtype=float) if len(deviation) else np.zeros(compass.TERMS)
+    model = _Model(
+        h,
+        np.array([r.rpm for r in runs]),
+        np.array([compass.basis(x) for x in h]),
+        fixed_dev,
+        declination_deg,
+        fit_deviation,
+        fit_offset,
+    )
+    th0 = np.zeros(need)
+    if fit_deviation:
+        th0[: compass.TERMS] = fixed_dev
+    th0[compass.TERMS if fit_deviation else 0] = 1.0 / rpm_per_mps
+    th, jac = _gauss_newton(model, th0, g)
     r = model(th) - g
     dof = max(1, g.size - th.size)
     sigma2 = float(r @ r) / dof
@@ -216,14 +259,13 @@ def fit(
     except np.linalg.LinAlgError:
         raise CalibrationError("the stretches do not determine the fit (degenerate)") from None
     std = np.sqrt(np.maximum(np.diag(cov_th), 0.0))
-    dev, q, b, cn, ce = unpack(th)
+    dev, q, b, cn, ce = model.unpack(th)
     if not (math.isfinite(q) and q > 0):
         raise CalibrationError("the fit gives no positive speed per RPM")
     i_q = compass.TERMS if fit_deviation else 0
     # heading residuals: the water track's direction against the fitted heading
-    psi = np.radians(h - basis @ dev + declination_deg)
     wn, we = g[: len(runs)] - cn, g[len(runs) :] - ce
-    dpsi = np.degrees(np.arctan2(we, wn) - psi)
+    dpsi = np.degrees(np.arctan2(we, wn) - model.heading_rad(dev))
     dpsi = (dpsi + 180.0) % 360.0 - 180.0
     return Fit(
         deviation_deg=[float(x) for x in dev],
