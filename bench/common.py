@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import yaml
 
-from navd.analysis.replay import replay
+from navd.analysis.replay import replay_outputs
 from navd.config import load_config
-from navd.formats.outputs import read_outputs
 from navd.schema import Output
 from navd.settings import deep_merge
 
@@ -28,14 +26,13 @@ def replay_mission(
 ) -> tuple[list[Output], str]:
     """What ``navd replay MISSION/measurements.jsonl --config <mode's>`` writes, and the
     error it would end with ("" when none), run in this process: a worker that replays
-    hundreds of missions starts Python and imports navd once."""
-    out = mission_dir / f"out-{mode}{'-smooth' if smooth else ''}.jsonl"
+    hundreds of missions starts Python and imports navd once, and keeps the outputs
+    rather than writing and reading them back."""
     try:
         cfg = load_config(mode_config(mission_dir, mode))
-        replay(mission_dir / "measurements.jsonl", cfg, out, smooth=smooth, err=io.StringIO())
+        return replay_outputs(mission_dir / "measurements.jsonl", cfg, smooth=smooth), ""
     except Exception as exc:  # a mission that makes navd raise is a result, not a crash
         return [], f"{exc.__class__.__name__}: {exc}"
-    return read_outputs(out), ""
 
 
 def write_section(path: Path, name: str, heading: str, body: str) -> None:

@@ -104,8 +104,14 @@ def test_emulated_modem_paces_its_lines_at_the_baud_rate(tmp_path: Path) -> None
             online=False,
         )
         got: list[tuple[float, object]] = []
+        # read every millisecond: what is timed here is the emulator's line, not the
+        # daemon's 20 ms read window (navd/drivers/transport.py)
         tr = SerialTransport(
-            str(emu.path), 9600, modem.ModemDecoder(), lambda r: got.append((time.monotonic(), r))
+            str(emu.path),
+            9600,
+            modem.ModemDecoder(),
+            lambda r: got.append((time.monotonic(), r)),
+            read_window_s=0.001,
         )
         tr.start()
         while not tr.health.connected:

@@ -174,6 +174,9 @@ def test_what_the_receiver_says_beyond_fixes_is_counted_in_health():
         def feed(self, rec) -> None:
             self.fed.append(rec)
 
+        def logged(self, name: str, decoder: object) -> object:
+            return decoder
+
     host = Host()
     dev = GpsReceiver(GpsDevice(port="/dev/null"), host)  # type: ignore[arg-type]
     data = (Path(__file__).parent / "data" / "gpsd" / "sirfstarv-nmea.log").read_bytes()

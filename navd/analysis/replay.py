@@ -148,6 +148,27 @@ class _Logs:
             print(f"{path}: ... {more} more lines skipped", file=self.err)
 
 
+def _replayed(nav: Navigator, logs: _Logs, smooth: bool) -> Iterator[Output]:
+    """What a replay writes, output by output (with the smoother's temporary files
+    closed when it is done, or given up)."""
+    try:
+        outputs: Iterable[Output] = navigate(nav, logs, checked=True)
+        if smooth:
+            outputs = _smoothed(nav, outputs)
+        yield from outputs
+    finally:
+        if nav.smoothing is not None:
+            nav.smoothing.close()  # its temporary files, now rather than at collection
+
+
+def replay_outputs(input_path: str | Path, cfg: Config, smooth: bool = False) -> list[Output]:
+    """What :func:`replay` writes, as the outputs themselves: for a worker that replays
+    hundreds of missions and scores them (no file written and read back)."""
+    _check_smoothable(cfg, smooth)
+    nav = Navigator(cfg, keep_history=smooth)
+    return list(_replayed(nav, _Logs([input_path], False, io.StringIO()), smooth))
+
+
 def replay(
     input_path: str | Path | list[str | Path],
     cfg: Config,
@@ -165,26 +186,19 @@ def replay(
     """
     _check_smoothable(cfg, smooth)
     err = err or sys.stderr  # looked up now: a test or a caller may have replaced it
-    paths = input_path if isinstance(input_path, list) else [input_path]
-    logs = _Logs(paths, strict, err)
+    logs = _Logs(input_path if isinstance(input_path, list) else [input_path], strict, err)
     nav = Navigator(cfg, keep_history=smooth)
     out = Path(out_path)
     tmp = out.with_name(out.name + ".part")
     estimates = 0
     try:
         with tmp.open("w", encoding="utf-8") as fh:
-            outputs: Iterable[Output] = navigate(nav, logs, checked=True)
-            if smooth:
-                outputs = _smoothed(nav, outputs)
-            for o in outputs:
+            for o in _replayed(nav, logs, smooth):
                 estimates += isinstance(o, Estimate)
                 fh.write(jsonlines.dumps_line(to_dict(o)))
     except BaseException:
         tmp.unlink(missing_ok=True)  # a strict replay stopped by a bad line leaves nothing
         raise
-    finally:
-        if nav.smoothing is not None:
-            nav.smoothing.close()  # its temporary files, now rather than at collection
     tmp.replace(out)
     for w in nav.warnings:
         print(f"warning: {w}", file=err)
