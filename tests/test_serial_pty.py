@@ -272,3 +272,31 @@ def test_a_quiet_port_stays_open_and_a_paced_line_is_read_in_few_wake_ups(
         talker.close()
 
     asyncio.run(main())
+
+
+def test_a_port_whose_read_raises_does_not_stop_the_others(tmp_path: Path) -> None:
+    """The ports are read together: a bug in one port's read is logged, and the next
+    window reads every port again."""
+
+    async def main() -> None:
+        bad_emu = GpsEmulator(tmp_path / "bad", rate_hz=5.0)
+        good_emu = GpsEmulator(tmp_path / "good", rate_hz=5.0)
+        bad_emu.start()
+        good_emu.start()
+        got: list = []
+        bad = SerialTransport(str(bad_emu.path), 9600, gps.NmeaDecoder(), lambda r: None)
+
+        def boom() -> None:
+            raise RuntimeError("a bug")
+
+        bad._read = boom  # type: ignore[method-assign]
+        good = SerialTransport(str(good_emu.path), 9600, gps.NmeaDecoder(), got.append)
+        bad.start()
+        good.start()
+        await _until(lambda: sum(isinstance(r, Gps) for r in got) >= 5)
+        await bad.stop()
+        await good.stop()
+        bad_emu.close()
+        good_emu.close()
+
+    asyncio.run(main())

@@ -48,6 +48,7 @@ class _Reader:
         self.poll = select.poll()
         self.ports: dict[int, Callable[[], None]] = {}
         self.handle: asyncio.TimerHandle | None = None
+        self.reported: set[int] = set()
 
     def add(self, fd: int, on_ready: Callable[[], None]) -> None:
         # readable, or hung up: a tty opened for non-blocking reads answers an empty
@@ -72,12 +73,20 @@ class _Reader:
 
     def _tick(self) -> None:
         self.handle = None
-        for fd, _events in self.poll.poll(0):
-            on_ready = self.ports.get(fd)
-            if on_ready is not None:  # not removed by a port read before it
-                on_ready()
-        if self.ports and self.handle is None:
-            self._schedule()
+        try:
+            for fd, _events in self.poll.poll(0):
+                on_ready = self.ports.get(fd)
+                if on_ready is None:
+                    continue  # removed by a port read before it
+                try:
+                    on_ready()
+                except Exception:  # one port's fault must not stop the others' reads
+                    if fd not in self.reported:  # once: it would repeat every window
+                        self.reported.add(fd)
+                        log.exception("reading fd %d raised", fd)
+        finally:
+            if self.ports and self.handle is None:
+                self._schedule()
 
 
 _readers: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, dict[float, _Reader]] = (
