@@ -42,8 +42,8 @@ class _Reader:
     """The open ports of one event loop, polled together every ``window`` seconds on
     the loop clock's grid: one timer and one ``poll`` for all of them."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, window: float) -> None:
-        self.loop = loop
+    def __init__(self, window: float) -> None:
+        # no reference to the loop: it is the key this reader is kept under (weakly)
         self.window = window
         self.poll = select.poll()
         self.ports: dict[int, Callable[[], None]] = {}
@@ -68,8 +68,9 @@ class _Reader:
             self.handle = None
 
     def _schedule(self) -> None:
-        when = (math.floor(self.loop.time() / self.window) + 1.0) * self.window
-        self.handle = self.loop.call_at(when, self._tick)
+        loop = asyncio.get_running_loop()
+        when = (math.floor(loop.time() / self.window) + 1.0) * self.window
+        self.handle = loop.call_at(when, self._tick)
 
     def _tick(self) -> None:
         self.handle = None
@@ -95,11 +96,10 @@ _readers: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, dict[float, _Read
 
 
 def _reader(window: float) -> _Reader:
-    loop = asyncio.get_running_loop()
-    by_window = _readers.setdefault(loop, {})
+    by_window = _readers.setdefault(asyncio.get_running_loop(), {})
     r = by_window.get(window)
     if r is None:
-        r = by_window[window] = _Reader(loop, window)
+        r = by_window[window] = _Reader(window)
     return r
 
 
