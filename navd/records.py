@@ -286,7 +286,6 @@ def implausible(rec: object) -> str | None:
             return f"field '{name}' is not a finite number"
         shown = f"{v:.6g}" if isinstance(v, float) or abs(v) < 10**15 else "a huge integer"
         return f"field '{name}'={shown} outside [{lo:g}, {hi:g}]"
-    t_ping = getattr(rec, "t_ping", None)
-    if t_ping is not None and t_ping > getattr(rec, "t", t_ping):
+    if isinstance(rec, Range | TravelTime) and rec.t_ping > rec.t:
         return "t_ping is after t"
     return None

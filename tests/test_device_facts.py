@@ -554,3 +554,29 @@ def test_gx3_a_new_hard_iron_read_supersedes_unanswered_ones() -> None:
     word = bytes([0xE5, 0x3E, 0x80])
     (w,) = dec.feed(word + (sum(word) & 0xFFFF).to_bytes(2, "big"), 1.0)
     assert w.address == ahrs.HARD_IRON_ADDR
+
+
+@pytest.mark.parametrize("size", [1, 16, 256, 4096])
+def test_the_modem_decoder_reads_the_same_at_any_read_size(size: int) -> None:
+    """The ATM-900's lines as Goby's driver knows them, handed over in reads of ``size``
+    bytes as a UART or the 20 ms read window does: the same records, the same modes and
+    replies as in one read.  (No public capture of an ATM-900 exists to replay here.)"""
+    text = (
+        b"Command '+++' not found\r\n\r\nuser:1> "
+        + b"TX time 12:00:00\r\n"
+        + GOBY_RANGE
+        + b"Remote Lat: 37.0490112 Lon: -80.6670001 Depth: 3.0\r\nOK\r\n"
+        + b"Response Not Received.\r\nERROR\r\nCONNECT 2400\r\nuser:1 Lowpower> "
+    )
+    whole = modem.ModemDecoder().feed(text, 1.0)
+    dec = modem.ModemDecoder()
+    parts: list[object] = []
+    for i in range(0, len(text), size):
+        parts += dec.feed(text[i : i + size], 1.0)
+    assert parts == whole
+    assert [type(r).__name__ for r in whole].count("ModemRange") == 1
+    kinds = [getattr(r, "status", getattr(r, "mode", None)) for r in whole]
+    assert kinds == [
+        "command", "command", None, "ok", "no_reply", "refused", "online", "lowpower"
+    ]  # fmt: skip
+    assert dec.stats.skipped_bytes == 0

@@ -123,6 +123,10 @@ class Daemon:
             return
         self._outputs(outs)
 
+    def logged(self, name: str, decoder: Any) -> _Logged:
+        """A device's decoder, with the raw bytes it is fed kept in the log first."""
+        return _Logged(name, decoder, self.rlog)
+
     def _navigator_failed(self, exc: Exception) -> None:
         # The core is meant to be total (tests/test_navigator_total.py); if it still
         # raises, its state may be half updated, so it starts again from the next fix.
@@ -183,9 +187,6 @@ class Daemon:
         return None
 
     # -- tasks -------------------------------------------------------------------------
-    def logged(self, name: str, decoder: Any) -> _Logged:
-        return _Logged(name, decoder, self.rlog)
-
     async def _ticker(self) -> None:
         dt_ = self.dt
         k = math.ceil(self.clock() / dt_)
