@@ -19,9 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
-from navd.analysis.score import Score, read_jsonl, score
+from navd.analysis.score import Score, score
 from navd.config import load_config
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import TruthSample, read_truth
 from navd.hil.bound import mission_bound
 from navd.hil.scenario import list_scenarios, load_scenario
 from navd.hil.sim_cli import write_mission
@@ -49,12 +50,12 @@ def replay(mission_dir: Path, mode: str, smooth: bool = False) -> list[Output]:
     return read_outputs(out)
 
 
-def dvl_errors(mission_dir: Path, truth: list[dict]) -> tuple[float, float, float]:
+def dvl_errors(mission_dir: Path, truth: list[TruthSample]) -> tuple[float, float, float]:
     """(distance run, actual DVL dead-reckoning error, predicted error) at surfacing."""
     from navd.analysis.score import _ne_error
 
     est, _ = split_outputs(read_outputs(mission_dir / "out-default.jsonl"))
-    by_t = {round(s["t"], 3): s for s in truth}
+    by_t = {round(s.t, 3): s for s in truth}
     sub = [o for o in est if o.mode == "submerged"]
     last = sub[-1]
     tr = by_t[round(last.t, 3)]
@@ -63,11 +64,11 @@ def dvl_errors(mission_dir: Path, truth: list[dict]) -> tuple[float, float, floa
     for o in sub:
         s = by_t.get(round(o.t, 3))
         if s is not None and prev is not None:
-            dist += math.hypot(*_ne_error(s["lat"], s["lon"], prev["lat"], prev["lon"]))
+            dist += math.hypot(*_ne_error(s.lat, s.lon, prev.lat, prev.lon))
         prev = s
     if last.dvl_lat is None or last.dvl_lon is None or last.dvl_error_pred_m is None:
         return dist, math.nan, math.nan
-    err = math.hypot(*_ne_error(last.dvl_lat, last.dvl_lon, tr["lat"], tr["lon"]))
+    err = math.hypot(*_ne_error(last.dvl_lat, last.dvl_lon, tr.lat, tr.lon))
     return dist, err, last.dvl_error_pred_m
 
 
@@ -88,7 +89,7 @@ def run_scenario(name: str, seeds: list[int], workdir: Path) -> dict[str, list[A
         # the bound does not model a DVL's velocity: it would not bound that mission
         if not sc.sensors.dvl:
             res["bound"].append(mission_bound(mission, load_config(d / "config.yaml")).rms_m)
-        truth = read_jsonl(d / "truth.jsonl")
+        truth = read_truth(d / "truth.jsonl")
         res["default"].append(score(replay(d, "default"), truth))
         res["smoothed"].append(score(replay(d, "default", smooth=True), truth))
         res["thesis"].append(score(replay(d, "thesis"), truth))

@@ -32,9 +32,10 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import mode_config, report
-from navd.analysis.score import read_jsonl, score
+from navd.analysis.score import score
 from navd.filter.advisory import replayed
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import TruthSample, read_truth
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -93,13 +94,13 @@ def draw(seed: int, crossing: bool = False) -> dict[str, Any]:
     }
 
 
-def _fly(sc: dict[str, Any], seed: int, d: Path) -> tuple[list[Output], list[dict]]:
+def _fly(sc: dict[str, Any], seed: int, d: Path) -> tuple[list[Output], list[TruthSample]]:
     write_mission(simulate(scenario_from_dict(sc), seed), d)
     out = d / "out.jsonl"
     cmd = [sys.executable, "-m", "navd.cli", "replay", str(d / "measurements.jsonl")]
     cmd += ["--config", str(mode_config(d, "default")), "--out", str(out)]
     subprocess.run(cmd, capture_output=True, check=True)
-    return read_outputs(out), read_jsonl(d / "truth.jsonl")
+    return read_outputs(out), read_truth(d / "truth.jsonl")
 
 
 def _fire(outputs: list[Output]) -> tuple[float, float] | None:

@@ -27,9 +27,10 @@ from typing import Any
 import yaml
 
 from bench.common import report
-from navd.analysis.score import read_jsonl, score
+from navd.analysis.score import score
 from navd.filter.compass import deviation_deg
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import read_truth
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -103,7 +104,7 @@ def _navd(*args: str) -> subprocess.CompletedProcess[str]:
 def run_one(seed: int, workdir: str) -> dict[str, Any]:
     d = Path(workdir) / f"cal-{seed}"
     write_mission(simulate(scenario_from_dict(draw(seed)), seed), d)
-    log, truth = d / "measurements.jsonl", read_jsonl(d / "truth.jsonl")
+    log, truth = d / "measurements.jsonl", read_truth(d / "truth.jsonl")
     configs = [d / "config.yaml"]
     crew = yaml.safe_load(configs[0].read_text())
     for what in ("compass", "speed"):

@@ -24,6 +24,7 @@ from navd import files
 from navd.analysis.score import position_rms, score
 from navd.formats import jsonlines
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import read_truth
 from navd.hil.scenario import load_scenario, scenario_dir, scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -80,7 +81,7 @@ def _replay_cmd(d: Path, mode: str, smooth: bool) -> list[str]:
 
 
 def speed(d: Path, runs: int, sim_s: float) -> list[str]:
-    truth = jsonlines.read(d / "truth.jsonl")
+    truth = read_truth(d / "truth.jsonl")
     n_lines = sum(1 for _ in (d / "measurements.jsonl").open()) - 1
     floor_cmd = [sys.executable, str(Path(__file__).with_name("numpy_floor.py"))]
     floor_cmd += [str(d / "measurements.jsonl"), str(d / "floor.jsonl")]

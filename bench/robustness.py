@@ -35,8 +35,9 @@ from typing import Any
 
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
-from navd.analysis.score import Score, read_jsonl, score
+from navd.analysis.score import Score, score
 from navd.config import load_config
+from navd.formats.truth import read_truth
 from navd.hil.bound import mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
@@ -258,7 +259,7 @@ def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
     mission = simulate(sc, noise_seed or seed)
     write_mission(mission, d)
     b = mission_bound(mission, load_config(d / "config.yaml"))
-    truth = read_jsonl(d / "truth.jsonl")
+    truth = read_truth(d / "truth.jsonl")
     out_d, err_d = replay_mission(d, "default")
     out_t, err_t = replay_mission(d, "thesis")
     result = Result(

@@ -22,7 +22,8 @@ from pathlib import Path
 
 from bench.accuracy import replay
 from bench.common import report
-from navd.analysis.score import read_jsonl, score
+from navd.analysis.score import score
+from navd.formats.truth import read_truth
 from navd.hil.scenario import Scenario, load_scenario
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -66,7 +67,7 @@ def _configured_rpm(sc: Scenario) -> float:
 def run_one(label: str, sc: Scenario, seed: int, workdir: Path) -> tuple[str, float, float]:
     d = workdir / f"{abs(hash(label))}-{seed}"
     write_mission(simulate(sc, seed), d)
-    s = score(replay(d, "default"), read_jsonl(d / "truth.jsonl"))
+    s = score(replay(d, "default"), read_truth(d / "truth.jsonl"))
     return label, s.dr_rms_m, s.rms_m
 
 

@@ -20,13 +20,13 @@ import asyncio
 import contextlib
 import threading
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import zenoh
 
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.schema import Advisory, Estimate, RangeDecision, T, from_dict
 from navd.zenohconf import read_zenoh_file
 
@@ -58,7 +58,7 @@ def open_session(
     connect: list[str] | None = None,
     config: zenoh.Config | None = None,
     wait_s: float = OPEN_WAIT_S,
-) -> Any:
+) -> zenoh.Session:
     """A zenoh client of ``connect`` (the daemon, or a router), with scouting off.
 
     A client talks only to what it connects to: everything it receives on navd's keys
@@ -81,15 +81,14 @@ def open_session(
     return zenoh.open(cfg)
 
 
-def _decode(payload: Any) -> dict[str, Any] | None:
+def _decode(payload: zenoh.ZBytes) -> JsonObject | None:
     try:
-        obj = jsonlines.loads(payload.to_bytes())
+        return jsonlines.object_or_none(jsonlines.loads(payload.to_bytes()))
     except jsonlines.DecodeError:
         return None
-    return obj if isinstance(obj, dict) else None
 
 
-def _typed(cls: type[T], payload: Any) -> T | None:
+def _typed(cls: type[T], payload: zenoh.ZBytes) -> T | None:
     """The payload as ``cls``, or None for what is not navd's schema (another
     publisher under the same keys must not raise in zenoh's thread)."""
     d = _decode(payload)
@@ -101,8 +100,10 @@ def _typed(cls: type[T], payload: Any) -> T | None:
         return None
 
 
-def _typed_callback(cls: type[T], callback: Callable[[Any], None]) -> Callable[[Any], None]:
-    def on_sample(sample: Any) -> None:
+def _typed_callback(
+    cls: type[T], callback: Callable[[T], None]
+) -> Callable[[zenoh.Sample], None]:
+    def on_sample(sample: zenoh.Sample) -> None:
         x = _typed(cls, sample.payload)
         if x is not None:
             callback(x)
@@ -144,7 +145,7 @@ def _user(config: zenoh.Config | None) -> str | None:
 
 def _session_or_why(
     connect: list[str] | None, config: zenoh.Config | None, wait_s: float, user: str | None
-) -> Any:
+) -> zenoh.Session:
     """A session to navd, or :class:`NavUnavailable` saying what to look at."""
     try:
         return open_session(connect, config, wait_s)
@@ -173,7 +174,7 @@ class NavClient:
         self,
         vehicle: str,
         connect: list[str] | None = None,
-        session: Any = None,
+        session: zenoh.Session | None = None,
         timeout_s: float = 2.0,
         config: zenoh.Config | None = None,
         config_file: str | None = None,
@@ -194,7 +195,7 @@ class NavClient:
         self.user = _user(config)
         self._own = session is None
         self.session = session or _session_or_why(connect, config, open_wait_s, self.user)
-        self._subs: list[Any] = []
+        self._subs: list[zenoh.Subscriber[None]] = []
         self._watchdogs: list[threading.Event] = []
 
     def __enter__(self) -> NavClient:
@@ -264,27 +265,26 @@ class NavClient:
                 last[0] = time.monotonic()
                 user_cb(e)
 
-        wanted: list[tuple[str, type[Any], Callable[[Any], None] | None]] = [
-            ("estimate", Estimate, on_estimate),
-            ("range", RangeDecision, on_range),
-            ("advisory", Advisory, on_advisory),
-        ]
-        for kind, cls, callback in wanted:
-            if callback is not None:
-                self._subs.append(
-                    self.session.declare_subscriber(
-                        f"{self.prefix}/{kind}", _typed_callback(cls, callback)
-                    )
-                )
+        self._listen("estimate", Estimate, on_estimate)
+        self._listen("range", RangeDecision, on_range)
+        self._listen("advisory", Advisory, on_advisory)
         if on_unavailable is not None:
             self._watch(last, on_unavailable)
+
+    def _listen(self, kind: str, cls: type[T], callback: Callable[[T], None] | None) -> None:
+        if callback is not None:
+            self._subs.append(
+                self.session.declare_subscriber(
+                    f"{self.prefix}/{kind}", _typed_callback(cls, callback)
+                )
+            )
 
     def _watch(self, last: list[float], report: Callable[[NavUnavailable], None]) -> None:
         stop = threading.Event()
         self._watchdogs.append(stop)
         said = [0.0]  # the estimate time last reported as stale or gone
 
-        def gone(sample: Any) -> None:
+        def gone(sample: zenoh.Sample) -> None:
             if sample.kind == zenoh.SampleKind.DELETE and said[0] != last[0]:
                 said[0] = last[0]
                 report(Gone(f"{self.prefix}: navd's liveliness token went away"))
@@ -322,7 +322,7 @@ class NavClient:
         def on_estimate(e: Estimate) -> None:
             loop.call_soon_threadsafe(put, e)
 
-        def on_alive(sample: Any) -> None:
+        def on_alive(sample: zenoh.Sample) -> None:
             if sample.kind == zenoh.SampleKind.DELETE:
                 loop.call_soon_threadsafe(
                     put, Gone(f"{self.prefix}: navd's liveliness token went away")
@@ -358,7 +358,7 @@ class NavClient:
     # -- commands --------------------------------------------------------------------
     def reset(self, force: bool = False, reason: str = "") -> Answer:
         """Forget the estimate; it starts again at the next fix (``force`` when submerged)."""
-        body: dict[str, Any] = {"force": force}
+        body: dict[str, object] = {"force": force}
         if reason:
             body["reason"] = reason
         return self._command("reset", body)
@@ -367,7 +367,7 @@ class NavClient:
         """A fixed position for a beacon whose replies carry none."""
         return self._command("beacon", {"name": name, "lat": lat, "lon": lon, "depth": depth})
 
-    def _command(self, name: str, body: dict[str, Any]) -> Answer:
+    def _command(self, name: str, body: Mapping[str, object]) -> Answer:
         replies = self.session.get(
             f"{self.prefix}/cmd/{name}", payload=jsonlines.dumps(body), timeout=self.timeout_s
         )
@@ -375,7 +375,8 @@ class NavClient:
             if reply.ok is not None:
                 d = _decode(reply.ok.payload) or {}
                 return Answer(bool(d.get("ok")), str(d.get("error", "")))
-            return Answer(False, f"zenoh: {reply.err.payload.to_string()}")
+            why = reply.err.payload.to_string() if reply.err is not None else "an empty reply"
+            return Answer(False, f"zenoh: {why}")
         who = f"user '{self.user}'" if self.user else "this session (no user)"
         return Answer(False, f"no answer from {self.prefix}: is navd up, and may {who} command it?")
 
@@ -386,7 +387,7 @@ class NavFleet:
     def __init__(
         self,
         connect: list[str] | None = None,
-        session: Any = None,
+        session: zenoh.Session | None = None,
         config: zenoh.Config | None = None,
         config_file: str | None = None,
     ) -> None:
@@ -404,15 +405,15 @@ class NavFleet:
         ]
 
     @staticmethod
-    def _vehicle(key: Any) -> str:
+    def _vehicle(key: zenoh.KeyExpr) -> str:
         return str(key).split("/")[1]
 
-    def _on_estimate(self, sample: Any) -> None:
+    def _on_estimate(self, sample: zenoh.Sample) -> None:
         e = _typed(Estimate, sample.payload)
         if e is not None:
             self.latest[self._vehicle(sample.key_expr)] = e
 
-    def _on_alive(self, sample: Any) -> None:
+    def _on_alive(self, sample: zenoh.Sample) -> None:
         name = self._vehicle(sample.key_expr)
         if sample.kind == zenoh.SampleKind.PUT:
             self.up.add(name)

@@ -18,6 +18,8 @@ from dataclasses import MISSING, dataclass, field, fields
 from operator import attrgetter
 from typing import Any, TypeVar
 
+from navd.formats.jsonlines import JsonObject
+
 #: the version in every zenoh message (``schema``); it changes when a field changes meaning
 SCHEMA_VERSION = 1
 
@@ -125,7 +127,7 @@ class DeviceHealth:
     device_errors: int  # error answers from the device
     resets: int
     last_device_error: str
-    info: dict[str, Any]  # what the device said of itself: firmware, serial number, ...
+    info: dict[str, object]  # what the device said of itself: firmware, serial number, ...
     internal_errors: dict[str, int]
     # what the decoder skipped or could not use, by reason and sentence type
     decode_reasons: dict[str, int] = field(default_factory=dict)
@@ -144,20 +146,20 @@ class Health:
     input_age_s: dict[str, float | None]
     last_range_accepted_age_s: float | None
     devices: dict[str, DeviceHealth]
-    pings: dict[str, Any]
-    modem: dict[str, Any]
+    pings: dict[str, object]
+    modem: dict[str, object]
     filter: dict[str, int]
     ticks: int
     tick_overruns: int
     tick_lateness_ms: dict[str, float | None]
     publish_latency_ms: dict[str, float | None]
-    log: dict[str, Any]
-    zenoh: dict[str, Any]
+    log: dict[str, object]
+    zenoh: dict[str, object]
     temperature_c: float | None
     gps_utc: str | None
     esc: dict[str, float]
     # the checkpoint kept for a restart, and what this run resumed from (None: not kept)
-    checkpoint: dict[str, Any] | None = _optional()
+    checkpoint: dict[str, object] | None = _optional()
     type: str = "health"
 
 
@@ -179,8 +181,8 @@ class _FlatPlan:
         self.get = attrgetter(*self.names)
         self.optional = tuple(n for n, o in plan if o)
 
-    def __call__(self, obj: Estimate | RangeDecision | Advisory) -> dict[str, Any]:
-        out: dict[str, Any] = {"type": obj.type}
+    def __call__(self, obj: Estimate | RangeDecision | Advisory) -> dict[str, object]:
+        out: dict[str, object] = {"type": obj.type}
         out.update(zip(self.names, self.get(obj), strict=True))
         for name in self.optional:
             if out[name] is None:
@@ -206,14 +208,14 @@ def finite(obj: Estimate | RangeDecision | Advisory) -> bool:
     return _FLAT[type(obj)].finite(obj)
 
 
-def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) -> dict[str, Any]:
+def to_dict(obj: Estimate | RangeDecision | Advisory | Health | DeviceHealth) -> dict[str, object]:
     """The serialised form: ``type`` first, optional fields left out while None.
 
     A device's ``info`` is spread into its entry (``firmware``, ``serial_number``...).
     """
     if isinstance(obj, Estimate | RangeDecision | Advisory):
         return _FLAT[type(obj)](obj)
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     if not isinstance(obj, DeviceHealth):
         out["type"] = obj.type
     for name, optional in _PLANS[type(obj)]:
@@ -243,7 +245,7 @@ def split_outputs(outputs: Iterable[Output]) -> tuple[list[Estimate], list[Range
     return est, dec
 
 
-def output_of(row: dict[str, Any]) -> Output | str | None:
+def output_of(row: JsonObject) -> Output | str | None:
     """A row of a replay output or a daemon log as an estimate or a range decision;
     None for any other row (a measurement, health, an advisory), or what is wrong with it.
 

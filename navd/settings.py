@@ -17,7 +17,7 @@ from typing import Any, Literal
 
 from navd import endpoints, validation
 from navd.acoustics import SoundSpeed
-from navd.validation import Invalid
+from navd.validation import Invalid, T
 from navd.validation import number as _num
 
 __all__ = ["ConfigError", "Config", "config_from_dict", "Beacon", "build", "deep_merge"]
@@ -330,7 +330,7 @@ def _fail(path: str, msg: str) -> typing.NoReturn:
     raise ConfigError(f"{path}: {msg}")
 
 
-def build(cls: type, data: Any, path: str = "") -> Any:
+def build(cls: type[T], data: object, path: str = "") -> T:
     """Validate a mapping into the dataclass ``cls`` (used for scenario files too)."""
     try:
         return validation.build(cls, data, path)
@@ -340,9 +340,9 @@ def build(cls: type, data: Any, path: str = "") -> Any:
         raise ConfigError(str(exc)) from None
 
 
-def config_from_dict(data: Any) -> Config:
+def config_from_dict(data: object) -> Config:
     """Validate a parsed YAML document into a :class:`Config`."""
-    cfg: Config = build(Config, data, "")
+    cfg = build(Config, data, "")
     z = cfg.zenoh
     for i, ep in enumerate(z.listen):
         # commands reach the vehicle through this: loopback, unless the config says more

@@ -14,7 +14,13 @@ import reprlib
 import types
 import typing
 from dataclasses import MISSING, field, fields, is_dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+#: a config section, a command, a scenario: any dataclass a mapping validates into
+T = TypeVar("T", bound="DataclassInstance")
 
 __all__ = ["Invalid", "LongInteger", "build", "excerpt", "number", "show", "text"]
 
@@ -46,7 +52,7 @@ def text(default: Any, pattern: str, what: str) -> Any:
 _KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,39}")
 
 
-def excerpt(value: Any, limit: int = 12) -> str:
+def excerpt(value: object, limit: int = 12) -> str:
     """A short, escaped excerpt of what a file said (a key), never more of its bytes."""
     text = value if isinstance(value, str) else repr(value)
     shown = text[:limit].encode("unicode_escape").decode("ascii").replace("'", "\\'")
@@ -58,7 +64,7 @@ _SHOW.maxlevel, _SHOW.maxlist, _SHOW.maxdict = 1, 4, 4
 _SHOW.maxstring = _SHOW.maxother = _SHOW.maxlong = 40
 
 
-def show(value: Any) -> str:
+def show(value: object) -> str:
     """A value as an error message shows it: bounded, whatever its size or nesting.
 
     A YAML alias bomb is small as parsed (shared references) and astronomically large
@@ -81,7 +87,7 @@ class LongInteger:
         return f"<an integer of {self.digits} digits>"
 
 
-def check_number(value: Any, tp: type, meta: typing.Mapping[str, Any], path: str) -> float | int:
+def check_number(value: object, tp: type, meta: typing.Mapping[str, Any], path: str) -> float | int:
     if isinstance(value, LongInteger):
         _fail(path, f"an integer of {value.digits} digits")
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -134,14 +140,14 @@ def convert(value: Any, tp: Any, meta: typing.Mapping[str, Any], path: str) -> A
     raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in the schema, not input
 
 
-def _list(value: Any, tp: Any, meta: typing.Mapping[str, Any], path: str) -> list[Any]:
+def _list(value: object, tp: Any, meta: typing.Mapping[str, Any], path: str) -> list[Any]:
     if not isinstance(value, list):
         _fail(path, f"expected a list, got {type(value).__name__}")
     (it,) = typing.get_args(tp)
     return [convert(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
 
 
-def _mapping(value: Any, tp: Any, path: str) -> dict[str, Any]:
+def _mapping(value: object, tp: Any, path: str) -> dict[str, Any]:
     if not isinstance(value, dict):
         _fail(path, f"expected a mapping, got {type(value).__name__}")
     _, vt = typing.get_args(tp)
@@ -153,7 +159,7 @@ def _mapping(value: Any, tp: Any, path: str) -> dict[str, Any]:
     return out
 
 
-def _text(value: Any, meta: typing.Mapping[str, Any], path: str) -> str:
+def _text(value: object, meta: typing.Mapping[str, Any], path: str) -> str:
     if not isinstance(value, str):
         _fail(path, f"expected a string, got {type(value).__name__} {show(value)}")
     pattern = meta.get("pattern")
@@ -162,7 +168,7 @@ def _text(value: Any, meta: typing.Mapping[str, Any], path: str) -> str:
     return value
 
 
-def build(cls: type, data: Any, path: str = "") -> Any:
+def build(cls: type[T], data: object, path: str = "") -> T:
     """Validate a mapping into the dataclass ``cls``: unknown keys, types, finiteness and
     each field's ``metadata`` bounds, every error one line naming the dotted key."""
     if data is None:

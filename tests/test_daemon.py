@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from navd.analysis.score import read_jsonl
 from navd.config import load_config
 from navd.daemon.publish import zenoh_config
+from navd.formats.jsonlines import read as read_jsonl
 from navd.formats.mlog import read_measurement_log
 from navd.hil.bench_vehicle import BenchVehicle, replay_against_live
 

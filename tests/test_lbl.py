@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import pytest
 from conftest import mission
 from serialised import rows
@@ -20,7 +18,7 @@ def _run(name: str, seed: int, smooth: bool = False):
     m = mission(name, seed)
     cfg = config_from_dict(deep_merge(crew_config(m.scenario), m.config_overrides))
     out = run_navigator(MeasurementLog({}, m.records, []), cfg, smooth).outputs
-    return m, out, score(out, [dataclasses.asdict(s) for s in m.truth])
+    return m, out, score(out, m.truth)
 
 
 def test_three_transponders_under_two_metres() -> None:

@@ -12,8 +12,10 @@ import pytest
 from conftest import mission
 from serialised import rows
 
-from navd.analysis.score import read_jsonl, score
+from navd.analysis.score import score
+from navd.formats.jsonlines import read as read_jsonl
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import TruthSample, read_truth
 from navd.hil.sim_cli import write_mission
 from navd.schema import Estimate
 
@@ -75,7 +77,7 @@ def test_replay_is_deterministic(claytor: Path, tmp_path: Path) -> None:
 def test_filter_beats_dead_reckoning_and_smoother_beats_filter(
     claytor: Path, tmp_path: Path
 ) -> None:
-    truth = read_jsonl(claytor / "truth.jsonl")
+    truth = read_truth(claytor / "truth.jsonl")
     assert replay_claytor(claytor, tmp_path / "f.jsonl").returncode == 0
     assert replay_claytor(claytor, tmp_path / "s.jsonl", "--smooth").returncode == 0
     filt = score(read_outputs(tmp_path / "f.jsonl"), truth)
@@ -158,7 +160,7 @@ def test_report_writes_figures(claytor: Path, tmp_path: Path) -> None:
     # a --truth that is not the simulator's truth is blamed by name, in one line
     r = run("report", str(out), "--truth", str(out), "--out", str(tmp_path / "rep2"))
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.count("\n") == 1 and f"{out}: record 1 is not a truth sample" in r.stderr
+    assert r.stderr.count("\n") == 1 and f"{out}: line 1 is not a truth sample" in r.stderr
 
 
 def test_travel_time_records_with_fixed_beacon(tmp_path: Path) -> None:
@@ -275,14 +277,12 @@ def test_the_truth_is_matched_between_its_steps(claytor: Path, tmp_path: Path) -
     compares, by interpolation; and says so plainly when nothing could be matched."""
     from navd.analysis.score import TruthAt
 
-    at = TruthAt([{"t": 0.0, "lat": 1.0, "lon": 2.0, "depth": 0.0, "current_n": 0.0,
-                   "current_e": 0.0},
-                  {"t": 0.1, "lat": 1.1, "lon": 2.2, "depth": 1.0, "current_n": 0.1,
-                   "current_e": 0.0},
-                  {"t": 5.0, "lat": 9.0, "lon": 9.0, "depth": 1.0, "current_n": 0.0,
-                   "current_e": 0.0}])  # fmt: skip
+    at = TruthAt([TruthSample(0.0, 1.0, 2.0, 0.0, 90.0, 1.0, 0.0, 0.0, 1.0, 2.0),
+                  TruthSample(0.1, 1.1, 2.2, 1.0, 91.0, 1.0, 0.1, 0.0, 1.0, 2.0),
+                  TruthSample(5.0, 9.0, 9.0, 1.0, 92.0, 1.0, 0.0, 0.0, 1.0, 2.0)])  # fmt: skip
     mid = at(0.05)
-    assert mid is not None and mid["lat"] == pytest.approx(1.05) and mid["depth"] == 0.5
+    assert mid is not None and mid.lat == pytest.approx(1.05) and mid.depth == 0.5
+    assert mid.current_n == pytest.approx(0.05) and mid.heading_deg == 90.0
     assert at(2.0) is None and at(-1.0) is None  # a gap in the truth, and before it
     out = tmp_path / "out.jsonl"
     replay_claytor(claytor, out)

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 from navd.analysis.report import ReportInput, errors_against_truth, minutes_axis, summary
+from navd.formats.truth import TruthSample
 from navd.schema import Estimate, RangeDecision
 
 
@@ -21,8 +22,8 @@ def _mission() -> ReportInput:
         RangeDecision(90.0, 89.0, "udb", reason="gate", range_m=900.0),
         RangeDecision(100.0, 99.0, "udb", reason="no_beacon_position"),
     ]
-    truth = [{"t": t, "lat": 37.0, "lon": -80.6, "depth": 2.0, "current_n": 0.0,
-              "current_e": 0.0} for t in (0.0, 60.0, 120.0)]  # fmt: skip
+    truth = [TruthSample(t, 37.0, -80.6, 2.0, 0.0, 1.0, 0.0, 0.0, 37.0, -80.6)
+             for t in (0.0, 60.0, 120.0)]
     return ReportInput(est, dec, [], truth, "truth.jsonl")
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import pytest
 from conftest import mission
 
@@ -21,7 +19,7 @@ def _run(name: str, records=None):
     m = mission(name, 1)
     cfg = config_from_dict(deep_merge(crew_config(m.scenario), m.config_overrides))
     res = run_navigator(MeasurementLog({}, records or m.records, []), cfg)
-    return res, score(res.outputs, [dataclasses.asdict(s) for s in m.truth])
+    return res, score(res.outputs, m.truth)
 
 
 def test_virtual_net_from_one_beacon_in_time() -> None:
@@ -73,7 +71,7 @@ def test_vlbl_selectable_as_the_navigation_mode() -> None:
         )
     )
     res = run_navigator(MeasurementLog({}, m.records, []), cfg)
-    s = score(res.outputs, [dataclasses.asdict(x) for x in m.truth])
+    s = score(res.outputs, m.truth)
     assert s.rms_m < 8.0 and s.dr_rms_m > 3 * s.rms_m
     with pytest.raises(ConfigError, match="smooth"):
         run_navigator(MeasurementLog({}, m.records, []), cfg, smooth=True)

@@ -12,11 +12,11 @@ from __future__ import annotations
 import datetime as dt
 import math
 from pathlib import Path
-from typing import Any
 
 from navd.analysis.replay import run_navigator
 from navd.analysis.surfacing import surfacings
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.formats.mission import Mission
 from navd.formats.mlog import MeasurementLog, read_measurement_log
 from navd.records import Gps
@@ -24,7 +24,7 @@ from navd.schema import Estimate, split_outputs
 from navd.settings import Config
 
 
-def _epoch(header: dict[str, Any]) -> float:
+def _epoch(header: JsonObject) -> float:
     """Unix seconds at the log's t = 0: its start, less the monotonic clock then."""
     start = header.get("start_utc")
     try:
@@ -37,7 +37,7 @@ def _epoch(header: dict[str, Any]) -> float:
     return t0 if math.isfinite(t0) else 0.0
 
 
-def _health_lines(paths: list[Path]) -> list[dict[str, Any]]:
+def _health_lines(paths: list[Path]) -> list[JsonObject]:
     out = []
     for p in paths:
         with p.open("rb") as fh:
@@ -45,10 +45,10 @@ def _health_lines(paths: list[Path]) -> list[dict[str, Any]]:
                 if b'"health"' not in line:
                     continue
                 try:
-                    obj = jsonlines.loads(line)
+                    obj = jsonlines.object_or_none(jsonlines.loads(line))
                 except jsonlines.DecodeError:
                     continue
-                if isinstance(obj, dict) and obj.get("type") == "health":
+                if obj is not None and obj.get("type") == "health":
                     out.append(obj)
     return out
 

@@ -17,45 +17,11 @@ from navd import geodesy
 from navd.analysis.score import TruthAt, score
 from navd.analysis.surfacing import surfacing_error_gps
 from navd.filter.advisory import replayed
-from navd.formats import jsonlines
 from navd.formats.mlog import LogError, read_measurement_log
 from navd.formats.outputs import read_outputs
+from navd.formats.truth import TruthError, TruthSample, read_truth
 from navd.records import Gps
 from navd.schema import Estimate, RangeDecision, split_outputs
-
-
-def _read(path: str | Path) -> list[dict[str, Any]]:
-    rows = []
-    with open(path, "rb") as fh:
-        for n, line in enumerate(fh, 1):
-            if not line.strip():
-                continue
-            try:
-                obj = jsonlines.loads(line)
-            except jsonlines.DecodeError:
-                raise LogError(f"{path}: line {n}: not JSON") from None
-            if isinstance(obj, dict):
-                rows.append(obj)
-    return rows
-
-
-_TRUTH_FIELDS = ("t", "lat", "lon", "depth", "current_n", "current_e", "boat_lat", "boat_lon")
-
-
-def _read_truth(path: str | Path) -> list[dict[str, Any]]:
-    """The simulator's truth (``truth.jsonl``); any other file is named as not one."""
-    rows = _read(path)
-    for n, row in enumerate(rows, 1):
-        # an estimate has most of these too, but a type, which a truth sample has not
-        if "type" in row or any(not isinstance(row.get(k), int | float) for k in _TRUTH_FIELDS):
-            raise LogError(
-                f"{path}: record {n} is not a truth sample (it needs "
-                f"{', '.join(_TRUTH_FIELDS)}: the simulator's truth.jsonl)"
-            )
-    if not rows:
-        raise LogError(f"{path}: no truth samples")
-    return rows
-
 
 RANGE_STD_M = 3.0  # the range noise the advisory weighs ranges with, when none is known
 
@@ -78,7 +44,7 @@ class ReportInput:
     estimates: list[Estimate]
     decisions: list[RangeDecision]
     fixes: list[Gps]
-    truth: list[dict[str, Any]]
+    truth: list[TruthSample]
     truth_name: str = ""  # the truth file, for saying it does not match
 
 
@@ -91,7 +57,10 @@ def read_input(
     fixes: list[Gps] = []
     if measurements:
         fixes = [r for r in read_measurement_log(measurements).records if isinstance(r, Gps)]
-    tru = _read_truth(truth) if truth else []
+    try:
+        tru = read_truth(truth) if truth else []
+    except TruthError as exc:
+        raise LogError(str(exc)) from None
     return ReportInput(est, rng, fixes, tru, str(truth or ""))
 
 
@@ -130,7 +99,7 @@ def _track(plt: Any, r: ReportInput) -> Any:
     fig, ax = plt.subplots(figsize=(8, 8))
     e, n = zip(*(grid.en(x.lat, x.lon) for x in est), strict=True)
     if tru:
-        te, tn = zip(*(grid.en(s["lat"], s["lon"]) for s in tru[::10]), strict=True)
+        te, tn = zip(*(grid.en(s.lat, s.lon) for s in tru[::10]), strict=True)
         ax.plot(te, tn, "k--", lw=1, label="truth")
     dr = [(x.dr_lat, x.dr_lon) for x in est if x.dr_lat is not None and x.dr_lon is not None]
     if dr:
@@ -200,7 +169,7 @@ def errors_against_truth(r: ReportInput) -> list[tuple[float, float]]:
     for x in r.estimates:
         s = truth_at(x.t)
         if s is not None:
-            err.append((x.t, math.hypot(*_Grid(s["lat"], s["lon"]).en(x.lat, x.lon))))
+            err.append((x.t, math.hypot(*_Grid(s.lat, s.lon).en(x.lat, x.lon))))
     return err
 
 
@@ -212,9 +181,9 @@ def _current(plt: Any, r: ReportInput) -> Any:
     ax1.plot(t, [x.current_n for x in est], label="north")
     ax1.plot(t, [x.current_e for x in est], label="east")
     if tru:
-        tt = [minutes(s["t"]) for s in tru]
-        ax1.plot(tt, [s["current_n"] for s in tru], "C0--", lw=0.8)
-        ax1.plot(tt, [s["current_e"] for s in tru], "C1--", lw=0.8)
+        tt = [minutes(s.t) for s in tru]
+        ax1.plot(tt, [s.current_n for s in tru], "C0--", lw=0.8)
+        ax1.plot(tt, [s.current_e for s in tru], "C1--", lw=0.8)
     ax1.set_ylabel("current (m/s)")
     ax1.legend(fontsize=8)
     ax1.grid(True, alpha=0.3)

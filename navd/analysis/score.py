@@ -12,15 +12,13 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 from geographiclib.geodesic import Geodesic
 
-from navd.formats import jsonlines
+from navd.formats.truth import TruthSample
 from navd.schema import Output, RangeDecision, split_outputs
 
 _GEOD = Geodesic.WGS84
@@ -68,10 +66,6 @@ def replies_to_reacquire(ranges: list[RangeDecision]) -> list[int]:
     return out
 
 
-def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
-    return jsonlines.read(path)
-
-
 _A, _E2 = _GEOD.a, _GEOD.f * (2.0 - _GEOD.f)
 #: up to here the error's components come from the ellipsoid's radii, beyond from Inverse
 _SHORT_M = 1000.0
@@ -111,7 +105,6 @@ def _mahalanobis2(dn: float, de: float, var_n: float, var_e: float, cov: float) 
 
 #: truth samples further apart than this are not interpolated between (a gap in the truth)
 _TRUTH_MAX_STEP_S = 1.0
-_INTERPOLATED = ("lat", "lon", "depth", "current_n", "current_e")
 
 
 class TruthAt:
@@ -119,28 +112,40 @@ class TruthAt:
 
     Estimates are on the filter's ticks, truth on the simulator's steps; live, the
     daemon's ticks fall between them (a monotonic clock against mission time), so
-    matching by equal time finds nothing."""
+    matching by equal time finds nothing.  Heading and speed are the earlier
+    sample's (a heading does not interpolate across north)."""
 
-    def __init__(self, truth: list[dict[str, Any]]) -> None:
-        self.samples = sorted(truth, key=lambda s: s["t"])
-        self.ts = [s["t"] for s in self.samples]
+    def __init__(self, truth: Sequence[TruthSample]) -> None:
+        self.samples = sorted(truth, key=lambda s: s.t)
+        self.ts = [s.t for s in self.samples]
 
-    def __call__(self, t: float) -> dict[str, Any] | None:
+    def __call__(self, t: float) -> TruthSample | None:
         i = bisect.bisect_left(self.ts, t)
         if i < len(self.ts) and abs(self.ts[i] - t) < 1e-6:
             return self.samples[i]
         if i == 0 or i == len(self.ts):
             return None
         a, b = self.samples[i - 1], self.samples[i]
-        span = b["t"] - a["t"]
+        span = b.t - a.t
         if span > _TRUTH_MAX_STEP_S:
             return None
-        w = (t - a["t"]) / span
-        return {"t": t, **{k: a[k] + w * (b[k] - a[k]) for k in _INTERPOLATED}}
+        w = (t - a.t) / span
+        return TruthSample(
+            t,
+            a.lat + w * (b.lat - a.lat),
+            a.lon + w * (b.lon - a.lon),
+            a.depth + w * (b.depth - a.depth),
+            a.heading_deg,
+            a.speed_mps,
+            a.current_n + w * (b.current_n - a.current_n),
+            a.current_e + w * (b.current_e - a.current_e),
+            a.boat_lat + w * (b.boat_lat - a.boat_lat),
+            a.boat_lon + w * (b.boat_lon - a.boat_lon),
+        )
 
 
 def position_rms(
-    points: Iterable[tuple[float, float, float]], truth: list[dict[str, Any]]
+    points: Iterable[tuple[float, float, float]], truth: Sequence[TruthSample]
 ) -> float:
     """RMS horizontal error (m) of ``(t, lat, lon)`` positions against the truth, over
     the submerged time, as :func:`score` takes it: for tracks that are not navd's
@@ -149,12 +154,12 @@ def position_rms(
     sq = []
     for t, lat, lon in points:
         tr = truth_at(t)
-        if tr is not None and tr["depth"] >= _SUBMERGED_DEPTH_M:
-            sq.append(math.hypot(*_ne_error(lat, lon, tr["lat"], tr["lon"])) ** 2)
+        if tr is not None and tr.depth >= _SUBMERGED_DEPTH_M:
+            sq.append(math.hypot(*_ne_error(lat, lon, tr.lat, tr.lon)) ** 2)
     return math.sqrt(sum(sq) / len(sq)) if sq else math.nan
 
 
-def score(outputs: Iterable[Output], truth: list[dict[str, Any]]) -> Score:
+def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
     """A mission's outputs against the simulator's truth samples (truth.jsonl)."""
     truth_at = TruthAt(truth)
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
@@ -163,22 +168,22 @@ def score(outputs: Iterable[Output], truth: list[dict[str, Any]]) -> Score:
     estimates, ranges = split_outputs(outputs)
     for o in estimates:
         tr = truth_at(o.t)
-        if tr is None or tr["depth"] < _SUBMERGED_DEPTH_M:
+        if tr is None or tr.depth < _SUBMERGED_DEPTH_M:
             continue
-        dn, de = _ne_error(o.lat, o.lon, tr["lat"], tr["lon"])
+        dn, de = _ne_error(o.lat, o.lon, tr.lat, tr.lon)
         e = math.hypot(dn, de)
         errs.append(e)
         d2 = _mahalanobis2(dn, de, o.std_n**2, o.std_e**2, o.cov_ne)
         inside.append(d2 <= CHI2_2DOF_95)
         if o.integrity == "ok":
             ok_inside.append(d2 <= CHI2_2DOF_99)
-        cur_errs.append(math.hypot(o.current_n - tr["current_n"], o.current_e - tr["current_e"]))
+        cur_errs.append(math.hypot(o.current_n - tr.current_n, o.current_e - tr.current_e))
         dre = None
         if o.dr_lat is not None and o.dr_lon is not None:
-            dre = math.hypot(*_ne_error(o.dr_lat, o.dr_lon, tr["lat"], tr["lon"]))
+            dre = math.hypot(*_ne_error(o.dr_lat, o.dr_lon, tr.lat, tr.lon))
             dr_errs.append(dre)
         if o.fix_lat is not None and o.fix_lon is not None:
-            fix_errs.append(math.hypot(*_ne_error(o.fix_lat, o.fix_lon, tr["lat"], tr["lon"])))
+            fix_errs.append(math.hypot(*_ne_error(o.fix_lat, o.fix_lon, tr.lat, tr.lon)))
         last_sub = (e, dre if dre is not None else math.nan)
     reacq = replies_to_reacquire(ranges)
     if not errs:

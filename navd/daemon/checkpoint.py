@@ -19,12 +19,12 @@ import math
 import os
 import time
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
 
 from navd import files
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.records import Resume, implausible
 from navd.settings import Config
 
@@ -62,7 +62,7 @@ class Checkpoints:
         self.errors = 0
         self.last_error = ""
 
-    def write(self, snapshot: dict[str, Any]) -> bool:
+    def write(self, snapshot: Mapping[str, object]) -> bool:
         doc = {
             "format": FORMAT,
             "version": VERSION,
@@ -85,7 +85,7 @@ class Checkpoints:
         self.written += 1
         return True
 
-    def section(self, resumed: dict[str, Any] | None) -> dict[str, Any]:
+    def section(self, resumed: Mapping[str, object] | None) -> dict[str, object]:
         """The checkpoints' part of the daemon's health, with what this run resumed from."""
         return {
             "file": str(self.path),
@@ -95,18 +95,20 @@ class Checkpoints:
             "resumed": resumed,
         }
 
-    def load(self, max_age_s: float) -> tuple[dict[str, Any] | None, str]:
+    def load(self, max_age_s: float) -> tuple[JsonObject | None, str]:
         """The checkpoint to resume, with its ``age_s``, or None and one line why not
         (empty when there is none at all)."""
         if not self.path.exists():
             return None, ""
         try:
-            doc = jsonlines.loads(files.read_regular(self.path, MAX_BYTES))
+            doc = jsonlines.object_or_none(
+                jsonlines.loads(files.read_regular(self.path, MAX_BYTES))
+            )
         except files.FileRefused as exc:
             return None, f"checkpoint ignored: {exc}"
         except jsonlines.DecodeError:
             return None, f"checkpoint ignored: {self.path}: not JSON"
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        if doc is None or doc.get("format") != FORMAT:
             return None, f"checkpoint ignored: {self.path}: not a navd checkpoint"
         if doc.get("version") != VERSION:
             return None, f"checkpoint ignored: {self.path}: version {doc.get('version')!r:.10}"
@@ -125,20 +127,33 @@ class Checkpoints:
         return {**doc, "age_s": max(0.0, age)}, ""
 
 
-def number_or_none(v: Any) -> float | None:
+def number_or_none(v: object) -> float | None:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
-def resume_record(snap: dict[str, Any], t: float) -> Resume | str:
+def _number(v: object) -> float:
+    x = number_or_none(v)
+    if x is None:
+        raise TypeError("not a number")
+    return x
+
+
+def _numbers(v: object) -> tuple[float, ...]:
+    if not isinstance(v, list):
+        raise TypeError("not a list")
+    return tuple(_number(x) for x in v)
+
+
+def resume_record(snap: JsonObject, t: float) -> Resume | str:
     """The record that resumes navigation at ``t`` from a loaded checkpoint, or why it
     cannot (the filter still judges the state itself)."""
     try:
         rec = Resume(
             t,
             str(snap["mode"]),
-            tuple(float(v) for v in snap["x"]),
-            tuple(float(v) for v in snap["P"]),
-            float(snap["age_s"]),
+            _numbers(snap["x"]),
+            _numbers(snap["P"]),
+            _number(snap["age_s"]),
             number_or_none(snap.get("surface_bar")),
             number_or_none(snap.get("surface_alt")),
             number_or_none(snap.get("depth_m")),
@@ -154,7 +169,7 @@ def resume(
     t: float,
     feed: Callable[[Resume], None],
     counters: typing.Mapping[str, int],
-) -> dict[str, Any] | None:
+) -> dict[str, object] | None:
     """Navigate on from the store's checkpoint, if it is of this vehicle and config and
     young enough: its record is fed (and so logged, and a replay resumes the same).
     Returns what was resumed, for health; None, with one line in the journal, if not."""
@@ -181,7 +196,7 @@ def resume(
 
 
 async def keep_writing(
-    store: Checkpoints, every_s: float, snapshot: Callable[[], dict[str, Any] | None]
+    store: Checkpoints, every_s: float, snapshot: Callable[[], Mapping[str, object] | None]
 ) -> None:
     """A checkpoint every ``every_s``, while the daemon runs."""
     while True:

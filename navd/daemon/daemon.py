@@ -19,7 +19,6 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
 
 from navd.config import log_dir
 from navd.daemon.checkpoint import (
@@ -31,14 +30,21 @@ from navd.daemon.checkpoint import (
 )
 from navd.daemon.devices import Device, make_devices, wait_open
 from navd.daemon.health import TickTimes, Vitals
-from navd.daemon.publish import BeaconCommand, Command, ResetCommand, open_with_retry
+from navd.daemon.publish import (
+    BeaconCommand,
+    Command,
+    Outlet,
+    OutletFactory,
+    ResetCommand,
+    open_with_retry,
+)
 from navd.daemon.resets import ResetRule
 from navd.daemon.sdnotify import Notifier
 from navd.daemon.status import every_second, health_of
 from navd.drivers.codec import Decoder, DecodeStats
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
-from navd.records import MAX_BEACONS, Reset, SetBeacon
+from navd.records import MAX_BEACONS, Record, Reset, SetBeacon
 from navd.schema import Estimate, Health, Output, RangeDecision
 from navd.settings import Config
 
@@ -72,7 +78,7 @@ class Daemon:
         cfg: Config,
         clock: Callable[[], float] = time.monotonic,
         notifier: Notifier | None = None,
-        publisher_factory: Callable[..., Any] | None = None,
+        publisher_factory: OutletFactory | None = None,
     ) -> None:
         self.cfg = cfg
         self.clock = clock
@@ -87,12 +93,12 @@ class Daemon:
             lc.keep_mb,
         )
         self.publisher_factory = publisher_factory
-        self.pub: Any = None
+        self.pub: Outlet | None = None
         where = checkpoint_dir(cfg, os.environ)
         self.checkpoints = (
             Checkpoints(where, cfg.vehicle.name, config_digest(cfg)) if where is not None else None
         )
-        self.resumed: dict[str, Any] | None = None  # what this run resumed from, if anything
+        self.resumed: dict[str, object] | None = None  # what this run resumed from, if anything
         self.vitals = Vitals(
             cfg.navigation.rate_hz,
             cfg.devices.modem.ping_interval_s,
@@ -113,7 +119,7 @@ class Daemon:
         self.resets = ResetRule()
 
     # -- records in ------------------------------------------------------------------
-    def feed(self, rec: Any) -> None:
+    def feed(self, rec: Record) -> None:
         """A measurement, stamped with its arrival, to the log and the filter."""
         self.rlog.record(rec)
         try:
@@ -123,7 +129,7 @@ class Daemon:
             return
         self._outputs(outs)
 
-    def logged(self, name: str, decoder: Any) -> _Logged:
+    def logged(self, name: str, decoder: Decoder) -> _Logged:
         """A device's decoder, with the raw bytes it is fed kept in the log first."""
         return _Logged(name, decoder, self.rlog)
 

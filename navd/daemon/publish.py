@@ -25,13 +25,14 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Protocol
 
 import zenoh
 
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.records import BEACON_NAME, SetBeacon, implausible
 from navd.schema import SCHEMA_VERSION, Published, to_dict
 from navd.settings import ZenohConfig
@@ -86,30 +87,50 @@ class BeaconCommand:
 
 #: a command as the daemon gets it: validated, typed
 Command = ResetCommand | BeaconCommand
+#: a command's body to its command, or why it is refused
+Validator = Callable[[JsonObject], Command | str]
 
 
-def validate_reset(body: dict[str, Any]) -> ResetCommand | str:
+class Outlet(Protocol):
+    """What the daemon publishes through: :class:`Publisher`, or a test's stand-in."""
+
+    def put(self, out: Published) -> bytes: ...
+
+    def section(self) -> dict[str, object]: ...
+
+    def forget_latest(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+#: opens an outlet in a thread: (the daemon's loop, where commands go) -> the outlet
+OutletFactory = Callable[
+    [asyncio.AbstractEventLoop, Callable[[Command], str | None]], Outlet
+]
+
+
+def validate_reset(body: JsonObject) -> ResetCommand | str:
     """The reset the body asks for, or why it is refused."""
     try:
-        cmd: ResetCommand = build(ResetCommand, body)
+        cmd = build(ResetCommand, body)
     except Invalid as exc:
         return str(exc)
     return cmd
 
 
-def validate_beacon(body: dict[str, Any]) -> BeaconCommand | str:
+def validate_beacon(body: JsonObject) -> BeaconCommand | str:
     """The beacon position the body gives, or why it is refused."""
     missing = [k for k in ("name", "lat", "lon") if k not in body]
     if missing:
         return f"{missing[0]}: missing"
     try:
-        cmd: BeaconCommand = build(BeaconCommand, body)
+        cmd = build(BeaconCommand, body)
     except Invalid as exc:
         return str(exc)
     return implausible(SetBeacon(0.0, cmd.name, cmd.lat, cmd.lon, cmd.depth)) or cmd
 
 
-def encode(seq: int, body: dict[str, Any]) -> bytes:
+def encode(seq: int, body: Mapping[str, object]) -> bytes:
     """A message as it goes on zenoh: the schema version, its sequence number, the body."""
     return jsonlines.dumps({"schema": SCHEMA_VERSION, "seq": seq, **body})
 
@@ -132,7 +153,7 @@ class TokenBucket:
         return True
 
 
-def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], Command | str]) -> Command | str:
+def parse_command(raw: bytes, validate: Validator) -> Command | str:
     """The command the bytes ask for, or why it is refused; never raises, whatever they are."""
     if len(raw) > MAX_COMMAND_BYTES:
         return f"payload longer than {MAX_COMMAND_BYTES} bytes"
@@ -142,10 +163,11 @@ def parse_command(raw: bytes, validate: Callable[[dict[str, Any]], Command | str
         return f"key '{str(exc)[:32]}' given twice"
     except (ValueError, RecursionError):  # bad JSON, bad UTF-8, nesting too deep
         return "payload must be a JSON object"
-    if not isinstance(body, dict):
+    obj = jsonlines.object_or_none(body)
+    if obj is None:
         return "payload must be a JSON object"
     try:
-        return validate(body)
+        return validate(obj)
     except Exception:  # pragma: no cover - validators are total; this is the last guard
         return "malformed command"
 
@@ -175,7 +197,7 @@ class Publisher:
             encoding=_JSON.with_schema(f"navd/estimate/{SCHEMA_VERSION}"),
         )
         self._second: float | None = None
-        self._latest: dict[str, Any] | None = None  # the newest estimate, and when it came
+        self._latest: Mapping[str, object] | None = None  # the newest estimate, and when it came
         self._t_latest = -math.inf
         self._lock = threading.Lock()
         self._queryables = [
@@ -193,7 +215,7 @@ class Publisher:
             kind: TokenBucket(COMMAND_RATE_HZ, COMMAND_BURST) for kind in ("reset", "beacon")
         }
 
-    def section(self) -> dict[str, Any]:
+    def section(self) -> dict[str, object]:
         """The open session's part of the daemon's health."""
         return {"open": True, "errors": self.errors, "commands": dict(self.commands)}
 
@@ -236,9 +258,10 @@ class Publisher:
             query.reply(f"{self.prefix}/latest", payload, encoding=_JSON)
 
     def _command(
-        self, name: str, validate: Callable[[dict[str, Any]], Command | str]
+        self, name: str, validate: Validator
     ) -> Callable[[zenoh.Query], None]:
         def handle(query: zenoh.Query) -> None:
+            reply: dict[str, object]
             try:
                 reply = self._decide(name, validate, query)
             except Exception as exc:  # nothing may be left unanswered in zenoh's thread
@@ -251,8 +274,8 @@ class Publisher:
         return handle
 
     def _decide(
-        self, name: str, validate: Callable[[dict[str, Any]], Command | str], query: zenoh.Query
-    ) -> dict[str, Any]:
+        self, name: str, validate: Validator, query: zenoh.Query
+    ) -> dict[str, object]:
         raw = query.payload.to_bytes() if query.payload is not None else b"{}"
         cmd = parse_command(raw, validate)
         if isinstance(cmd, str):
@@ -292,10 +315,10 @@ class Publisher:
 
 
 async def open_with_retry(
-    factory: Callable[..., Any],
+    factory: OutletFactory,
     on_command: Callable[[Command], str | None],
     say: Callable[[str], None],
-) -> Any:
+) -> Outlet:
     """The publisher ``factory`` makes, tried until it opens (port in use, bad endpoint,
     a router that does not answer); ``say`` is told why it is not open yet, and "" once
     it is.  Navigation and the log do not wait for it."""

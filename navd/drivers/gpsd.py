@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from typing import Any
 
 from navd.drivers.codec import DecodeStats
 from navd.drivers.gps import Epochs, GpsTime
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.records import Gps, implausible
 
 #: what navd sends gpsd on connecting: JSON reports, no NMEA
@@ -33,14 +33,14 @@ _QUALITY_OF_STATUS = {1: 1, 2: 2, 3: 4, 4: 5}
 _NOT_FIX_STATUS = frozenset({5, 6, 7, 8})
 
 
-def _num(o: dict[str, Any], key: str) -> float | None:
+def _num(o: JsonObject, key: str) -> float | None:
     v = o.get(key)
     if isinstance(v, bool) or not isinstance(v, int | float):
         return None
     return float(v) if math.isfinite(v) else None
 
 
-def _utc(text: Any) -> dt.datetime | None:
+def _utc(text: object) -> dt.datetime | None:
     if not isinstance(text, str) or len(text) > 40:
         return None
     try:
@@ -108,17 +108,15 @@ class GpsdDecoder:
             self.stats.reasons[key] = self.stats.reasons.get(key, 0) + 1
         return []
 
-    def _sky(self, o: dict[str, Any]) -> None:
+    def _sky(self, o: JsonObject) -> None:
         self._hdop = _num(o, "hdop")
         used = o.get("uSat")
         if isinstance(used, int) and not isinstance(used, bool):
             self._sats = used
-        elif isinstance(o.get("satellites"), list):
-            self._sats = sum(
-                1 for s in o["satellites"] if isinstance(s, dict) and s.get("used") is True
-            )
+        elif isinstance(sats := o.get("satellites"), list):
+            self._sats = sum(1 for s in sats if isinstance(s, dict) and s.get("used") is True)
 
-    def _tpv(self, o: dict[str, Any], t: float) -> list[object]:
+    def _tpv(self, o: JsonObject, t: float) -> list[object]:
         out: list[object] = []
         utc = _utc(o.get("time"))
         mode = o.get("mode")
@@ -133,7 +131,7 @@ class GpsdDecoder:
             out.append(Gps(t, None, None, None, 0, self._hdop, 0, sats=self._sats))
             return out
         quality = _QUALITY_OF_STATUS.get(status, 1)
-        epoch = o.get("time") if isinstance(o.get("time"), str) else None
+        epoch = when if isinstance(when := o.get("time"), str) else None
         if self._epochs.duplicate(epoch, t):
             return out
         alt_msl = _num(o, "altMSL")

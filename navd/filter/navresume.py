@@ -4,7 +4,6 @@ what a checkpoint holds, and navigating on from one."""
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
@@ -13,7 +12,7 @@ from navd.records import Resume
 
 
 class Resuming(NavParts):
-    def snapshot(self) -> dict[str, Any] | None:
+    def snapshot(self) -> dict[str, object] | None:
         """What a restart needs to resume navigating (None: nothing to resume yet): the
         filter's state and covariance, the depth gauge's zero, the water's height."""
         f = self.filter

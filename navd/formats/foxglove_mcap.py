@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from navd.formats.jsonschema import schema_of
 from navd.formats.mission import Mission
@@ -25,27 +25,36 @@ from navd.formats.mlog import record_to_json
 from navd.records import TYPE_NAMES
 from navd.schema import Estimate, Health, RangeDecision, to_dict
 
+if TYPE_CHECKING:  # the SDK is an extra, imported where it is used
+    import foxglove
+    from foxglove.channels import LocationFixChannel
+    from foxglove.messages import LocationFix
+
 
 def _ns(m: Mission, t: float) -> int:
     return int(round((m.epoch_s + t) * 1e9))
 
 
-def location_fix(lat: float, lon: float, depth: float, e: Estimate | None, t_ns: int) -> Any:
+def location_fix(
+    lat: float, lon: float, depth: float, e: Estimate | None, t_ns: int
+) -> LocationFix:
     """A ``foxglove.LocationFix``; with the estimate's covariance (ENU, metres²) when given."""
     from foxglove.messages import LocationFix, LocationFixPositionCovarianceType, Timestamp
 
-    kw: dict[str, Any] = {}
-    if e is not None:
-        vn, ve, c = e.std_n**2, e.std_e**2, e.cov_ne
-        kw["position_covariance"] = [ve, c, 0.0, c, vn, 0.0, 0.0, 0.0, 0.01]
-        kw["position_covariance_type"] = LocationFixPositionCovarianceType.Known
+    stamp = Timestamp(sec=t_ns // 1_000_000_000, nsec=t_ns % 1_000_000_000)
+    if e is None:
+        return LocationFix(
+            timestamp=stamp, frame_id="wgs84", latitude=lat, longitude=lon, altitude=-depth
+        )
+    vn, ve, c = e.std_n**2, e.std_e**2, e.cov_ne
     return LocationFix(
-        timestamp=Timestamp(sec=t_ns // 1_000_000_000, nsec=t_ns % 1_000_000_000),
+        timestamp=stamp,
         frame_id="wgs84",
         latitude=lat,
         longitude=lon,
         altitude=-depth,
-        **kw,
+        position_covariance=[ve, c, 0.0, c, vn, 0.0, 0.0, 0.0, 0.01],
+        position_covariance_type=LocationFixPositionCovarianceType.Known,
     )
 
 
@@ -98,7 +107,7 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
     counts: dict[str, int] = {}
     writer = foxglove.open_mcap(str(path), allow_overwrite=True, context=ctx)
     try:
-        fix_channels: dict[str, Any] = {}
+        fix_channels: dict[str, LocationFixChannel] = {}
 
         def fix(
             topic: str, t: float, lat: float, lon: float, depth: float, e: Estimate | None = None
@@ -113,9 +122,9 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
         for topic, t, lat, lon, depth, e in _located(m):
             fix(topic, t, lat, lon, depth, e)
 
-        json_channels: dict[str, Any] = {}
+        json_channels: dict[str, foxglove.Channel] = {}
 
-        def as_json(topic: str, t: float, body: dict[str, Any], cls: type) -> None:
+        def as_json(topic: str, t: float, body: dict[str, object], cls: type) -> None:
             ch = json_channels.get(topic)
             if ch is None:
                 schema = schema_of(cls, title=topic)
@@ -128,7 +137,8 @@ def write_mcap(m: Mission, path: str | Path) -> dict[str, int]:
         for d in m.decisions:
             as_json("/nav/range", d.t, to_dict(d), RangeDecision)
         for h in m.health:
-            as_json("/nav/health", h["t"], h, Health)
+            if isinstance(t_h := h.get("t"), int | float):
+                as_json("/nav/health", t_h, h, Health)
         for rec in m.records:
             if type(rec) in TYPE_NAMES:  # not a daemon log's ticks: its steps, not readings
                 topic = f"/sensors/{TYPE_NAMES[type(rec)]}"

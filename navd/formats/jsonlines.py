@@ -20,7 +20,20 @@ try:
 except ImportError:  # pragma: no cover - orjson is a dependency; the fallback is for vendors
     orjson = None  # type: ignore[assignment]
 
-__all__ = ["loads", "loads_unique", "dumps", "dumps_line", "read", "DecodeError", "DuplicateKey"]
+__all__ = [
+    "loads", "loads_unique", "dumps", "dumps_line", "read", "DecodeError", "DuplicateKey",
+    "JsonObject", "object_or_none",
+]
+
+#: a JSON object as decoded, its values to be checked for their types where they are used
+JsonObject = dict[str, object]
+
+
+def object_or_none(value: object) -> JsonObject | None:
+    """``value`` if it is a JSON object (a dict with string keys), else None."""
+    if isinstance(value, dict) and all(isinstance(k, str) for k in value):
+        return value
+    return None
 
 
 class DuplicateKey(ValueError):

@@ -16,8 +16,9 @@ import contextlib
 import datetime as dt
 import os
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
 from navd.formats import jsonlines
 from navd.formats.mlog import FORMAT, VERSION, record_to_json
@@ -78,7 +79,7 @@ class RecordLog:
         fh.flush()
         self.fh, self.size = fh, len(line)
 
-    def _write(self, obj: dict[str, Any]) -> None:
+    def _write(self, obj: Mapping[str, object]) -> None:
         if self.fh is None:
             if time.monotonic() < self._retry_at:
                 self.dropped += 1
@@ -113,7 +114,7 @@ class RecordLog:
                 self.fh.close()
         self.fh = None
 
-    def section(self) -> dict[str, Any]:
+    def section(self) -> dict[str, object]:
         """The log's part of the daemon's health."""
         return {
             "file": str(self.path) if self.path else None,

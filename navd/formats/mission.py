@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, field
-from typing import Any
 
+from navd.formats.jsonlines import JsonObject
 from navd.records import Gps, Record
 from navd.schema import Estimate, RangeDecision
 
@@ -33,7 +33,7 @@ class Mission:
     epoch_s: float  # Unix time of t = 0 (the log's time base)
     smoothed: list[Estimate] = field(default_factory=list)
     # the daemon's health lines as logged (a measurement log has none)
-    health: list[dict[str, Any]] = field(default_factory=list)
+    health: list[JsonObject] = field(default_factory=list)
     surfacings: list[Surfacing] = field(default_factory=list)  # one per dive
 
     def utc(self, t: float) -> dt.datetime:

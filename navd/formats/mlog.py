@@ -13,10 +13,11 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from navd import files
 from navd.formats import jsonlines
+from navd.formats.jsonlines import JsonObject
 from navd.records import (
     BEACON_NAME,
     MAX_ABS_T,
@@ -64,7 +65,7 @@ class Skipped:
 
 @dataclass(slots=True)
 class MeasurementLog:
-    header: dict[str, Any]
+    header: JsonObject
     records: list[Record]
     skipped: list[Skipped]
 
@@ -73,7 +74,7 @@ class _Bad(Exception):
     pass
 
 
-def _num(obj: dict[str, Any], key: str) -> float:
+def _num(obj: JsonObject, key: str) -> float:
     """A number field; its bounds are checked on the whole record (records.implausible)."""
     if key not in obj:
         raise _Bad(f"missing field '{key}'")
@@ -85,31 +86,31 @@ def _num(obj: dict[str, Any], key: str) -> float:
     return float(v)
 
 
-def _opt(obj: dict[str, Any], key: str) -> float | None:
+def _opt(obj: JsonObject, key: str) -> float | None:
     if obj.get(key) is None:
         return None
     return _num(obj, key)
 
 
-def _str(obj: dict[str, Any], key: str) -> str:
+def _str(obj: JsonObject, key: str) -> str:
     v = obj.get(key)
     if not isinstance(v, str) or not v:
         raise _Bad(f"field '{key}' must be a non-empty string")
     return v
 
 
-def _beacon_name(obj: dict[str, Any]) -> str:
+def _beacon_name(obj: JsonObject) -> str:
     name = _str(obj, "beacon")
     if not BEACON_NAME.fullmatch(name):
         raise _Bad("field 'beacon': 1 to 32 letters, digits, '_', '.' or '-' (as the command)")
     return name
 
 
-def _beacon_fields(obj: dict[str, Any]) -> tuple[float | None, float | None, float | None]:
+def _beacon_fields(obj: JsonObject) -> tuple[float | None, float | None, float | None]:
     return _opt(obj, "beacon_lat"), _opt(obj, "beacon_lon"), _opt(obj, "beacon_depth")
 
 
-def _parse_gps(o: dict[str, Any], t: float) -> Gps:
+def _parse_gps(o: JsonObject, t: float) -> Gps:
     fix = o.get("fix")
     if isinstance(fix, bool) or not isinstance(fix, int) or fix not in (0, 1, 2):
         raise _Bad("field 'fix' must be 0, 1 or 2")
@@ -130,7 +131,7 @@ def _parse_gps(o: dict[str, Any], t: float) -> Gps:
     )
 
 
-def _numbers(obj: dict[str, Any], key: str, max_len: int = 256) -> tuple[float, ...]:
+def _numbers(obj: JsonObject, key: str, max_len: int = 256) -> tuple[float, ...]:
     v = obj.get(key)
     if not isinstance(v, list) or not v or len(v) > max_len:
         raise _Bad(f"field '{key}' must be a list of at most {max_len} numbers")
@@ -142,7 +143,7 @@ def _numbers(obj: dict[str, Any], key: str, max_len: int = 256) -> tuple[float, 
     return tuple(out)
 
 
-def _parse_resume(o: dict[str, Any], t: float) -> Resume:
+def _parse_resume(o: JsonObject, t: float) -> Resume:
     mode = o.get("mode")
     if mode not in ("default", "thesis", "vlbl"):
         raise _Bad("field 'mode' must be default, thesis or vlbl")
@@ -156,7 +157,7 @@ def _parse_resume(o: dict[str, Any], t: float) -> Resume:
     )
 
 
-def _parse_range(o: dict[str, Any], t: float) -> Range:
+def _parse_range(o: JsonObject, t: float) -> Range:
     return Range(
         t,
         _num(o, "t_ping"),
@@ -168,13 +169,13 @@ def _parse_range(o: dict[str, Any], t: float) -> Range:
     )
 
 
-def _parse_tt(o: dict[str, Any], t: float) -> TravelTime:
+def _parse_tt(o: JsonObject, t: float) -> TravelTime:
     return TravelTime(
         t, _num(o, "t_ping"), _num(o, "twtt_s"), _str(o, "beacon"), *_beacon_fields(o)
     )
 
 
-_PARSERS: dict[str, Callable[[dict[str, Any], float], Record]] = {
+_PARSERS: dict[str, Callable[[JsonObject, float], Record]] = {
     "heading": lambda o, t: Heading(t, _num(o, "deg")),
     "attitude": lambda o, t: Attitude(
         t, _num(o, "roll_deg"), _num(o, "pitch_deg"), _num(o, "yaw_deg")
@@ -198,7 +199,7 @@ _PARSERS: dict[str, Callable[[dict[str, Any], float], Record]] = {
 }
 
 
-def parse_record(obj: Any) -> Record:
+def parse_record(obj: object) -> Record:
     """One decoded JSON object to a record; raises ``ValueError`` with the reason."""
     try:
         if not isinstance(obj, dict):
@@ -216,7 +217,7 @@ def parse_record(obj: Any) -> Record:
         raise ValueError(str(exc)) from None
 
 
-def _check_header(obj: Any) -> dict[str, Any]:
+def _check_header(obj: object) -> JsonObject:
     if not isinstance(obj, dict) or obj.get("format") != FORMAT:
         raise LogError(f"line 1: not a measurement log header (expected format '{FORMAT}')")
     if obj.get("version") != VERSION:
@@ -448,8 +449,8 @@ def read_measurement_log(path: str | Path, strict: bool = False) -> MeasurementL
     return MeasurementLog(stream.header, records, stream.skipped)
 
 
-def record_to_json(rec: Record) -> dict[str, Any]:
-    out: dict[str, Any] = {"type": TYPE_NAMES[type(rec)]}
+def record_to_json(rec: Record) -> JsonObject:
+    out: JsonObject = {"type": TYPE_NAMES[type(rec)]}
     for f in fields(rec):
         v = getattr(rec, f.name)
         if v is None:
@@ -461,7 +462,7 @@ def record_to_json(rec: Record) -> dict[str, Any]:
 class MeasurementWriter:
     """Writes a measurement log v1 to an open text stream."""
 
-    def __init__(self, fh: IO[str], start_utc: str, **extra: Any) -> None:
+    def __init__(self, fh: IO[str], start_utc: str, **extra: object) -> None:
         self._fh = fh
         header = {"format": FORMAT, "version": VERSION, "start_utc": start_utc, **extra}
         fh.write(jsonlines.dumps_line(header))

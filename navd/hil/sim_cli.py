@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import fields
-from operator import attrgetter
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +16,7 @@ import yaml
 
 from navd.formats import jsonlines
 from navd.formats.mlog import MeasurementWriter
+from navd.formats.truth import write_truth
 from navd.hil.scenario import Scenario, list_scenarios, load_scenario
 from navd.hil.world import Mission, simulate
 from navd.settings import ConfigError, config_from_dict, deep_merge
@@ -64,12 +63,7 @@ def write_mission(
     cfg = deep_merge(cfg, config_overrides or {})
     (out_dir / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
     with (out_dir / "truth.jsonl").open("w", encoding="utf-8") as fh:
-        if m.truth:
-            names = tuple(f.name for f in fields(m.truth[0]))
-            get = attrgetter(*names)  # asdict's deep copy, without its cost per sample
-            fh.writelines(
-                jsonlines.dumps_line(dict(zip(names, get(s), strict=True))) for s in m.truth
-            )
+        write_truth(fh, m.truth)
     meta = {"scenario": m.scenario.name, "seed": m.seed, "pings": m.pings, "replies": m.replies}
     (out_dir / "mission.json").write_text(jsonlines.dumps_line(meta), encoding="utf-8")
 

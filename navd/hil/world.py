@@ -28,6 +28,7 @@ from pyproj import Transformer
 
 from navd.acoustics import coppens
 from navd.filter.compass import deviation_deg
+from navd.formats.truth import TruthSample
 from navd.hil.scenario import Scenario
 from navd.records import (
     Attitude,
@@ -51,20 +52,6 @@ _GPS_SURFACE_DEPTH_M = 0.2  # the antenna is out of the water above this depth
 # fraction of swing_m per square-root second), held within swing_m
 SWING_MEMORY = 0.98
 SWING_STEP = 0.2
-
-
-@dataclass(frozen=True, slots=True)
-class TruthSample:
-    t: float
-    lat: float
-    lon: float
-    depth: float
-    heading_deg: float  # true
-    speed_mps: float  # through the water
-    current_n: float
-    current_e: float
-    boat_lat: float
-    boat_lon: float
 
 
 @dataclass(slots=True)

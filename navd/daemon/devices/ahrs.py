@@ -20,7 +20,8 @@ class Ahrs(Device):
     name = "ahrs"
 
     def __init__(self, cfg: AhrsDevice, host: Host) -> None:
-        super().__init__(cfg, host, ahrs.AhrsDecoder())
+        self.gx3 = ahrs.AhrsDecoder()
+        super().__init__(cfg, host, self.gx3)
         self.rate_hz = cfg.rate_hz
         self.expected_rate_hz = cfg.rate_hz
         self.t_probe: float | None = None  # since when the unit has been asked who it is
@@ -36,7 +37,7 @@ class Ahrs(Device):
         self.info.clear()
         self.eeprom.clear()
         tr.write(ahrs.encode_firmware_probe())
-        tr.write(self.decoder.request_hard_iron())
+        tr.write(self.gx3.request_hard_iron())
         tr.write(ahrs.encode_sampling(self.rate_hz))
         tr.write(ahrs.encode_continuous())
 
@@ -66,7 +67,7 @@ class Ahrs(Device):
             self.t_probe_sent = now
             tr.write(ahrs.encode_firmware_probe())
             if "hard_iron" not in self.info:
-                tr.write(self.decoder.request_hard_iron())
+                tr.write(self.gx3.request_hard_iron())
         last = max(tr.health.last_rx or -math.inf, self.t_probe or -math.inf, self.t_reset)
         if now - last < RESET_S:
             return

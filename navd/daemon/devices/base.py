@@ -5,11 +5,12 @@ from __future__ import annotations
 import asyncio
 from collections import deque
 from collections.abc import Callable, Coroutine
-from typing import Any, Protocol, TypedDict
+from typing import Protocol, TypedDict
 
 from navd.daemon.health import RECENT_S, Vitals
-from navd.drivers.codec import DeviceError
+from navd.drivers.codec import Decoder, DeviceError
 from navd.drivers.transport import SerialTransport
+from navd.records import Record
 from navd.schema import DeviceHealth
 from navd.settings import SerialPortConfig
 
@@ -19,6 +20,9 @@ CORRUPT_BYTES = 64
 CORRUPT_WINDOW_S = 5.0
 SILENT_S = 3.0  # a streaming or polled device this long without a byte is said silent
 
+#: what a device runs while the daemon does (its polls, its pings)
+Job = Coroutine[object, object, None]
+
 
 class Host(Protocol):
     """What a device may ask of the daemon around it."""
@@ -27,9 +31,9 @@ class Host(Protocol):
 
     def clock(self) -> float: ...
 
-    def feed(self, rec: Any) -> None: ...
+    def feed(self, rec: Record) -> None: ...
 
-    def logged(self, name: str, decoder: Any) -> Any:
+    def logged(self, name: str, decoder: Decoder) -> Decoder:
         """``decoder`` with the raw bytes it is fed kept in the log first."""
         ...
 
@@ -37,8 +41,8 @@ class Host(Protocol):
 class HealthSections(TypedDict, total=False):
     """The sections of health's top level that belong to one device (docs/schema.md)."""
 
-    pings: dict[str, Any]  # the modem's
-    modem: dict[str, Any]
+    pings: dict[str, object]  # the modem's
+    modem: dict[str, object]
     temperature_c: float | None  # the pressure sensor's
     gps_utc: str | None  # the GPS receiver's last UTC
     esc: dict[str, float]  # the motor controller's battery, current, temperature
@@ -52,7 +56,7 @@ class Device:
     #: records a second navd asks of the device (None: it speaks when spoken to)
     expected_rate_hz: float | None = None
 
-    def __init__(self, cfg: SerialPortConfig, host: Host, decoder: Any) -> None:
+    def __init__(self, cfg: SerialPortConfig, host: Host, decoder: Decoder) -> None:
         self.cfg = cfg
         self.host = host
         self.decoder = decoder
@@ -71,7 +75,7 @@ class Device:
         self.t_device_error: float | None = None
         self.last_device_error = ""
         # what the device said of itself (firmware, serial number, calibration): in health
-        self.info: dict[str, Any] = {}
+        self.info: dict[str, object] = {}
         self.resets = 0
         # (t, bad frames, skipped bytes) at each health tick: what the last seconds brought
         self.bad_history: deque[tuple[float, int, int]] = deque()
@@ -83,7 +87,7 @@ class Device:
     def on_record(self, rec: object) -> None:
         raise NotImplementedError
 
-    def tasks(self) -> list[Coroutine[Any, Any, None]]:
+    def tasks(self) -> list[Job]:
         """Coroutines that run while the daemon does (polls, pings)."""
         return []
 

@@ -5,10 +5,8 @@ modem's own "no reply", a refusal or navd's timeout."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Coroutine
-from typing import Any
 
-from navd.daemon.devices.base import Device, HealthSections, Host
+from navd.daemon.devices.base import Device, HealthSections, Host, Job
 from navd.drivers import modem
 from navd.drivers.transport import SerialTransport
 from navd.records import Range
@@ -44,7 +42,8 @@ class ModemPinger(Device):
     name = "modem"
 
     def __init__(self, cfg: ModemDevice, host: Host) -> None:
-        super().__init__(cfg, host, modem.ModemDecoder())
+        self.atm = modem.ModemDecoder()
+        super().__init__(cfg, host, self.atm)
         self.modem = cfg
         self.session = modem.ModemSession()
         self.ping_t: float | None = None  # when the outstanding ping left
@@ -56,12 +55,12 @@ class ModemPinger(Device):
     def sections(self) -> HealthSections:
         return _sections(self.pings, self.session)
 
-    def tasks(self) -> list[Coroutine[Any, Any, None]]:
+    def tasks(self) -> list[Job]:
         return [self._keeper(), self._pinger()]
 
     def on_tick(self, now: float) -> None:
         # a range whose location line never came is complete after a short wait
-        for rec in self.decoder.expire(now):
+        for rec in self.atm.expire(now):
             self.handle(rec)
 
     def every_second(self, now: float) -> None:

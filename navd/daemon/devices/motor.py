@@ -3,10 +3,7 @@ current and temperature (health ``esc``)."""
 
 from __future__ import annotations
 
-from collections.abc import Coroutine
-from typing import Any
-
-from navd.daemon.devices.base import Device, HealthSections, Host
+from navd.daemon.devices.base import Device, HealthSections, Host, Job
 from navd.drivers import castle
 from navd.drivers.transport import SerialTransport
 from navd.records import Rpm
@@ -17,7 +14,8 @@ class MotorController(Device):
     name = "motor"
 
     def __init__(self, cfg: MotorDevice, host: Host) -> None:
-        super().__init__(cfg, host, castle.CastleDecoder(cfg.pole_pairs, cfg.device_id))
+        self.castle = castle.CastleDecoder(cfg.pole_pairs, cfg.device_id)
+        super().__init__(cfg, host, self.castle)
         self.poll_hz = cfg.poll_hz
         self.expected_rate_hz = cfg.poll_hz
         self.esc: dict[str, float] = {}  # battery voltage, current, temperature
@@ -26,10 +24,10 @@ class MotorController(Device):
         return {"esc": dict(self.esc)}
 
     def on_open(self, tr: SerialTransport) -> None:
-        tr.write(self.decoder.request_clear())  # a half request left in the ESC is dropped
+        tr.write(self.castle.request_clear())  # a half request left in the ESC is dropped
 
-    def tasks(self) -> list[Coroutine[Any, Any, None]]:
-        return [self.poll(self.poll_hz, self.decoder.request_poll)]
+    def tasks(self) -> list[Job]:
+        return [self.poll(self.poll_hz, self.castle.request_poll)]
 
     def on_record(self, rec: object) -> None:
         if isinstance(rec, Rpm):

@@ -4,10 +4,8 @@ for pressure; its temperature goes to health."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Coroutine
-from typing import Any
 
-from navd.daemon.devices.base import Device, HealthSections, Host
+from navd.daemon.devices.base import Device, HealthSections, Host, Job
 from navd.drivers import keller
 from navd.drivers.transport import SerialTransport
 from navd.records import Pressure
@@ -18,7 +16,8 @@ class PressureSensor(Device):
     name = "pressure"
 
     def __init__(self, cfg: PressureDevice, host: Host) -> None:
-        super().__init__(cfg, host, keller.KellerDecoder(cfg.address, cfg.local_echo))
+        self.keller = keller.KellerDecoder(cfg.address, cfg.local_echo)
+        super().__init__(cfg, host, self.keller)
         self.poll_hz = cfg.poll_hz
         self.expected_rate_hz = cfg.poll_hz
         self.temperature_c: float | None = None
@@ -27,11 +26,11 @@ class PressureSensor(Device):
         return {"temperature_c": self.temperature_c}
 
     def on_open(self, tr: SerialTransport) -> None:
-        tr.write(self.decoder.request_init())
-        tr.write(self.decoder.request_serial())  # which sensor: in health and the journal
+        tr.write(self.keller.request_init())
+        tr.write(self.keller.request_serial())  # which sensor: in health and the journal
 
-    def tasks(self) -> list[Coroutine[Any, Any, None]]:
-        return [self.poll(self.poll_hz, lambda: self.decoder.request(keller.CH_PRESSURE))]
+    def tasks(self) -> list[Job]:
+        return [self.poll(self.poll_hz, lambda: self.keller.request(keller.CH_PRESSURE))]
 
     def on_record(self, rec: object) -> None:
         if isinstance(rec, Pressure):
