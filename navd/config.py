@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import typing
 from pathlib import Path
-from typing import Any
 
 from navd import files
 from navd.settings import Config, ConfigError, config_from_dict, deep_merge
@@ -30,14 +29,14 @@ def default_config_path(env: typing.Mapping[str, str]) -> str | None:
 MAX_OVERLAY_DEPTH = 8  # overlays of overlays: deeper is a loop or a mistake
 
 
-def _read_yaml(p: Path) -> Any:
+def _read_yaml(p: Path) -> object:
     try:
         return files.load_yaml(p)
     except files.FileRefused as exc:
         raise ConfigError(str(exc)) from None
 
 
-def read_with_overlays(p: Path, depth: int = 0) -> dict[str, Any]:
+def read_with_overlays(p: Path, depth: int = 0) -> dict[str, object]:
     """A config file with its ``overlays`` merged on top, in order, each relative to it.
 
     A site file is an overlay on the vehicle's file: ``overlays: [sites/claytor-lake.yaml]``
@@ -46,9 +45,12 @@ def read_with_overlays(p: Path, depth: int = 0) -> dict[str, Any]:
     if depth > MAX_OVERLAY_DEPTH:
         raise ConfigError(f"{p}: overlays nested deeper than {MAX_OVERLAY_DEPTH} (a loop?)")
     raw = _read_yaml(p)
-    data: dict[str, Any] = {} if raw is None else raw
-    if not isinstance(data, dict):
-        raise ConfigError(f"{p}: expected a mapping of sections, got {type(data).__name__}")
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{p}: expected a mapping of sections, got {type(raw).__name__}")
+    # a key that is no string is refused by name when the config is validated
+    data: dict[str, object] = dict(raw)
     names = data.pop("overlays", [])
     if isinstance(names, str):
         names = [names]
@@ -64,7 +66,7 @@ def load_config(path: str | Path | None, sites: typing.Sequence[str | Path] = ()
     ``None`` and no sites gives all defaults."""
     if path is None and not sites:
         return Config()
-    data: dict[str, Any] = {}
+    data: dict[str, object] = {}
     named = []
     for f in [*([path] if path is not None else []), *sites]:
         data = deep_merge(data, read_with_overlays(Path(f)))

@@ -181,7 +181,7 @@ def _over_budget(node: yaml.Node, budget: int) -> str | None:
     return None
 
 
-def parse_yaml(text: str) -> Any:
+def parse_yaml(text: str) -> object:
     """One YAML document within the bounds; raises ``yaml.YAMLError`` saying where."""
     loader = BoundedLoader(text)
     try:
@@ -210,7 +210,7 @@ def yaml_error_line(exc: yaml.YAMLError) -> str:
     return f"{where}invalid YAML"
 
 
-def load_yaml(path: str | Path, max_bytes: int = MAX_CONFIG_BYTES) -> Any:
+def load_yaml(path: str | Path, max_bytes: int = MAX_CONFIG_BYTES) -> object:
     """A YAML file from anywhere: a regular file, bounded, parsed within the bounds.
 
     Raises :class:`FileRefused` with one line naming the file."""

@@ -16,7 +16,8 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, TypeVar, cast
 
 from navd.client import open_session
 from navd.formats import jsonlines
@@ -24,6 +25,13 @@ from navd.formats.foxglove_mcap import location_fix
 from navd.formats.jsonschema import schema_of
 from navd.schema import Advisory, Estimate, Health, RangeDecision, output_of
 from navd.zenohconf import read_zenoh_file
+
+if TYPE_CHECKING:  # the SDK is an extra, imported when the bridge starts
+    import foxglove
+    import zenoh
+    from foxglove.channels import LocationFixChannel, LogChannel
+
+C = TypeVar("C")
 
 DEFAULT_PORT = 8765
 #: what the SDK's server accepts (foxglove-sdk's websocket handshake); not configurable
@@ -45,12 +53,11 @@ class Bridge:
 
         # the zenoh file first: a bad one is a one-line error before anything is served
         zcfg = read_zenoh_file(zenoh_file, "--zenoh-config") if zenoh_file else None
-        self._fg = foxglove
         self.ctx = foxglove.Context()
         self.server = foxglove.start_server(name="navd", host=host, port=port, context=self.ctx)
         self.session = open_session(connect, zcfg)
         self._lock = threading.Lock()
-        self._channels: dict[str, Any] = {}
+        self._channels: dict[str, object] = {}
         self.messages = 0
         self._heard: dict[str, float] = {}  # vehicle: monotonic time of its last message
         self._silent: set[str] = set()
@@ -60,36 +67,45 @@ class Bridge:
     def port(self) -> int:
         return int(self.server.port)
 
-    def _channel(self, topic: str, kind: str) -> Any:
+    def _channel(self, topic: str, make: Callable[[], C]) -> C:
+        """The topic's channel, made on first use (samples come on zenoh's threads)."""
         with self._lock:
             ch = self._channels.get(topic)
             if ch is None:
-                if kind == "estimate":
-                    from foxglove.channels import LocationFixChannel
+                ch = self._channels[topic] = make()
+            return cast(C, ch)  # one topic, one kind of channel: the topic names its kind
 
-                    ch = LocationFixChannel(topic, context=self.ctx)
-                elif kind == "log":
-                    from foxglove.channels import LogChannel
+    def _fix_channel(self, topic: str) -> LocationFixChannel:
+        from foxglove.channels import LocationFixChannel
 
-                    ch = LogChannel(topic, context=self.ctx)
-                else:
-                    schema = schema_of(_JSON_KINDS[kind], title=topic)
-                    ch = self._fg.Channel(
-                        topic, schema=schema, message_encoding="json", context=self.ctx
-                    )
-                self._channels[topic] = ch
-            return ch
+        return self._channel(topic, lambda: LocationFixChannel(topic, context=self.ctx))
 
-    def _on_sample(self, sample: Any) -> None:
+    def _log_channel(self, topic: str) -> LogChannel:
+        from foxglove.channels import LogChannel
+
+        return self._channel(topic, lambda: LogChannel(topic, context=self.ctx))
+
+    def _json_channel(self, topic: str, kind: str) -> foxglove.Channel:
+        import foxglove
+
+        schema = schema_of(_JSON_KINDS[kind], title=topic)
+        return self._channel(
+            topic,
+            lambda: foxglove.Channel(
+                topic, schema=schema, message_encoding="json", context=self.ctx
+            ),
+        )
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
         parts = str(sample.key_expr).split("/")  # auv/<vehicle>/nav/<kind>
         if len(parts) != 4 or parts[3] not in ("estimate", *_JSON_KINDS):
             return
         vehicle, kind = parts[1], parts[3]
         try:
-            body = jsonlines.loads(sample.payload.to_bytes())
+            body = jsonlines.object_or_none(jsonlines.loads(sample.payload.to_bytes()))
         except jsonlines.DecodeError:
             return
-        if not isinstance(body, dict):
+        if body is None:
             return
         topic = f"/{vehicle}/{kind}"
         now_ns = time.time_ns()
@@ -99,9 +115,9 @@ class Bridge:
                 if not isinstance(est, Estimate):
                     return  # not navd's schema: another publisher under auv/*
                 msg = location_fix(est.lat, est.lon, est.depth, est, now_ns)
-                self._channel(topic, kind).log(msg, log_time=now_ns)
+                self._fix_channel(topic).log(msg, log_time=now_ns)
             else:
-                self._channel(topic, kind).log(body, log_time=now_ns)
+                self._json_channel(topic, kind).log(body, log_time=now_ns)
         except (KeyError, TypeError, ValueError):
             return  # not navd's schema: another publisher under auv/*
         self.messages += 1
@@ -134,7 +150,7 @@ class Bridge:
         stamp = Timestamp(sec=t_ns // 1_000_000_000, nsec=t_ns % 1_000_000_000)
         lv = LogLevel.Warning if level == "warning" else LogLevel.Info
         msg = Log(timestamp=stamp, level=lv, message=text, name="navd foxglove")
-        self._channel(f"/{vehicle}/log", "log").log(msg, log_time=t_ns)
+        self._log_channel(f"/{vehicle}/log").log(msg, log_time=t_ns)
 
     def close(self) -> None:
         try:

@@ -12,8 +12,9 @@ overlays is :mod:`navd.config`, above it.
 from __future__ import annotations
 
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any, Literal
+from typing import Literal
 
 from navd import endpoints, validation
 from navd.acoustics import SoundSpeed
@@ -371,7 +372,7 @@ def config_from_dict(data: object) -> Config:
     return cfg
 
 
-def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+def deep_merge(base: Mapping[str, object], over: Mapping[str, object]) -> dict[str, object]:
     """``over`` on top of ``base``: mappings merged key by key, anything else replaced.
 
     New mappings are made only along the paths both have; everything else is shared,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import tempfile
 from dataclasses import dataclass
-from typing import IO, TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import IO, TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -55,9 +55,9 @@ class Step:
 
     t: float
     F: np.ndarray
-    x_pred: object
+    x_pred: np.ndarray
     P_pred: np.ndarray
-    x_filt: object
+    x_filt: np.ndarray
     P_filt: np.ndarray
 
 
@@ -95,7 +95,7 @@ class History:
             self._block = (start, self._read(start, min(self.BLOCK, self._on_disk - start)))
         return self._unpack(self._block[1][k - start])
 
-    def add(self, t: float, F: np.ndarray, x: object, P: np.ndarray) -> None:
+    def add(self, t: float, F: np.ndarray, x: np.ndarray, P: np.ndarray) -> None:
         if self.enabled:
             if self._latest is not None:
                 self._spill(self._latest)
@@ -112,7 +112,7 @@ class History:
             s.P_pred = s.P_pred + (P - s.P_filt)
             s.P_filt = P
 
-    def correct(self, x: object, P: np.ndarray) -> None:
+    def correct(self, x: np.ndarray, P: np.ndarray) -> None:
         """Replace the filtered state of the latest step after an update."""
         s = self._latest
         if self.enabled and s is not None:
@@ -196,7 +196,7 @@ class NavFilter(Protocol):
     def initialised(self) -> bool: ...
 
     @property
-    def x(self) -> Any:
+    def x(self) -> np.ndarray:
         """The state vector (its first two: latitude and longitude, radians)."""
 
     @property
@@ -237,12 +237,12 @@ class Smoothable(NavFilter, Protocol):
 
     history: History
 
-    # a mode's state is its own (an array, or an array with a reference point)
-    def state_diff(self, a: Any, b: Any) -> np.ndarray: ...
+    # a mode's state is its own vector: how two differ and a difference adds is the mode's
+    def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray: ...
 
-    def state_apply(self, x: Any, dx: np.ndarray) -> Any: ...
+    def state_apply(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray: ...
 
-    def estimate_of(self, x: Any, P: np.ndarray) -> StateEstimate: ...
+    def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate: ...
 
 
 def principal_axes(nn: float, ee: float, ne: float) -> tuple[float, float, float]:

@@ -32,9 +32,9 @@ class Steps(Protocol):
 
 def rts_backward(
     steps: Steps,
-    diff: Callable[[object, object], np.ndarray],
-    apply: Callable[[object, np.ndarray], object],
-) -> Iterator[tuple[int, object, np.ndarray]]:
+    diff: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    apply: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
     """The smoothed state and covariance of every step, ``(k, x, P)``, from the last
     step back to the first: each needs only the one after it, so nothing is held."""
     n = len(steps)

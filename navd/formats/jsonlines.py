@@ -40,8 +40,8 @@ class DuplicateKey(ValueError):
     """A JSON object that names a key twice (JSON keeps the last, silently)."""
 
 
-def _refuse_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
+def _refuse_duplicates(pairs: list[tuple[str, object]]) -> JsonObject:
+    out: JsonObject = {}
     for k, v in pairs:
         if k in out:
             raise DuplicateKey(k)
@@ -49,14 +49,14 @@ def _refuse_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def loads_unique(text: str | bytes) -> Any:
+def loads_unique(text: str | bytes) -> object:
     """``loads`` for a small message whose meaning a repeated key could change (a
     command: ``{"force": false, "force": true}``); raises DuplicateKey or a DecodeError.
     The standard library's parser, for its hook: commands are at most a few kB."""
     return json.loads(text, object_pairs_hook=_refuse_duplicates, parse_constant=_no_constant)
 
 
-def _no_constant(name: str) -> Any:
+def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not JSON")  # NaN, Infinity: as orjson refuses them
 
 if orjson is not None:
@@ -67,10 +67,10 @@ if orjson is not None:
 
     _OPTS = orjson.OPT_SERIALIZE_NUMPY  # a numpy scalar that reached an output is a number
 
-    def dumps(obj: Any) -> bytes:
+    def dumps(obj: object) -> bytes:
         return orjson.dumps(obj, option=_OPTS)
 
-    def dumps_line(obj: Any) -> str:
+    def dumps_line(obj: object) -> str:
         return orjson.dumps(obj, option=_OPTS).decode() + "\n"
 
 else:  # pragma: no cover
@@ -80,10 +80,10 @@ else:  # pragma: no cover
     def loads(text: str | bytes) -> Any:
         return json.loads(text)
 
-    def dumps(obj: Any) -> bytes:
+    def dumps(obj: object) -> bytes:
         return _enc(obj).encode()
 
-    def dumps_line(obj: Any) -> str:
+    def dumps_line(obj: object) -> str:
         return _enc(obj) + "\n"
 
 

@@ -94,7 +94,7 @@ class Fault:
     value: float = number(0.0, lo=0.0, hi=1000.0)
 
 
-def check_faults(faults: Any) -> list[dict[str, Any]]:
+def check_faults(faults: object) -> list[Fault]:
     """The fault schedule, or a ConfigError naming the first bad entry."""
     if faults is None:
         return []
@@ -106,7 +106,7 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
         try:
             if isinstance(f, dict) and "t" not in f:
                 raise Invalid(f"{where}.t: missing (seconds into the mission)")
-            fault: Fault = build(Fault, f, where)
+            fault = build(Fault, f, where)
         except Invalid as exc:
             raise ConfigError(str(exc)) from None
         if _ONLY_ON.get(fault.action, fault.device) != fault.device:
@@ -116,7 +116,7 @@ def check_faults(faults: Any) -> list[dict[str, Any]]:
             raise ConfigError(f"{where}.value: expected how many times each frame is sent")
         if fault.action in _RATE_ACTIONS and not v <= 1.0:
             raise ConfigError(f"{where}.value: expected a probability in [0, 1]")
-        out.append(asdict(fault))
+        out.append(fault)
     return out
 
 
@@ -179,7 +179,7 @@ class Bench:
         return s.surface_pressure_bar + s.water_density_kgm3 * s.gravity_mps2 * depth / 1e5
 
     async def run(
-        self, stop: asyncio.Event, faults: list[dict[str, Any]], banner: str = ""
+        self, stop: asyncio.Event, faults: list[Fault], banner: str = ""
     ) -> None:
         d = self.dir
         self.t0 = time.monotonic()
@@ -193,10 +193,10 @@ class Bench:
             print(banner, file=sys.stderr, flush=True)  # the ports are served: vehicle up
         gps_off = False
         last_fix = -1e9
-        pending = sorted(faults, key=lambda f: f["t"])
+        pending = sorted(faults, key=lambda f: f.t)
         try:
             for rec in self.mission.records:
-                while pending and pending[0]["t"] <= rec.t:
+                while pending and pending[0].t <= rec.t:
                     f = pending.pop(0)
                     gps_off = self._fault(emus, f, gps_off)
                 delay = self.t0 + rec.t / self.speed - time.monotonic()
@@ -246,9 +246,9 @@ class Bench:
         )
 
     @staticmethod
-    def _fault(emus: Emulators, f: dict[str, Any], gps_off: bool) -> bool:
-        e: Any = emus.by_name(f["device"])  # an action the device has not is a scenario error
-        action, value = f["action"], f.get("value", 0.0)
+    def _fault(emus: Emulators, f: Fault, gps_off: bool) -> bool:
+        e: Any = emus.by_name(f.device)  # an action the device has not is a scenario error
+        action, value = f.action, f.value
         if action == "reconnect":
             e.port.reconnect()
         elif action == "disconnect":
