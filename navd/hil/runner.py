@@ -21,6 +21,7 @@ import math
 import signal
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -121,12 +122,12 @@ def check_faults(faults: object) -> list[Fault]:
 
 
 def daemon_config(
-    crew: dict[str, Any],
+    crew: Mapping[str, object],
     d: Path,
     zenoh_port: int,
     vehicle: str = "sim690s",
     connect: list[str] | None = None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     return deep_merge(
         crew,
         {

@@ -148,7 +148,7 @@ class Scenario:
     sensors: Sensors = field(default_factory=Sensors)
     boat: Boat = field(default_factory=Boat)
     acoustics: Acoustics = field(default_factory=Acoustics)
-    config: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, object] = field(default_factory=dict)
 
 
 def scenario_dir() -> Path:
@@ -177,7 +177,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         raise ConfigError(f"{p}: {exc}") from None
 
 
-def scenario_from_dict(data: Any) -> Scenario:
+def scenario_from_dict(data: object) -> Scenario:
     """Validate a scenario mapping (as a YAML file holds it); ``config`` is the crew's."""
     if not isinstance(data, dict):
         raise ConfigError("expected a mapping")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import yaml
 
@@ -22,7 +22,7 @@ from navd.hil.world import Mission, simulate
 from navd.settings import ConfigError, config_from_dict, deep_merge
 
 
-def crew_config(sc: Scenario) -> dict[str, Any]:
+def crew_config(sc: Scenario) -> dict[str, object]:
     """The navd config a crew would write for this mission: site facts, not the truth's errors."""
     a = sc.acoustics
     auto = {
@@ -52,7 +52,7 @@ def crew_config(sc: Scenario) -> dict[str, Any]:
 
 
 def write_mission(
-    m: Mission, out_dir: Path, config_overrides: dict[str, Any] | None = None
+    m: Mission, out_dir: Path, config_overrides: Mapping[str, object] | None = None
 ) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     with (out_dir / "measurements.jsonl").open("w", encoding="utf-8") as fh:

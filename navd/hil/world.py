@@ -64,7 +64,7 @@ class Mission:
     replies: int
     channel: AcousticChannel
     # what the crew's config gets from this mission (surveyed transponder positions)
-    config_overrides: dict[str, Any] = field(default_factory=dict)
+    config_overrides: dict[str, object] = field(default_factory=dict)
 
 
 def _wrap_deg(a: float) -> float:
