@@ -182,3 +182,34 @@ def test_a_multipath_burst_does_not_open_the_gate_to_the_next_outlier() -> None:
     assert not decisions[6].accepted  # the gate still refuses a 30 m outlier
     e, n, _ = geodesy.enu_offset(LAT, LON, 0, f.x[0], f.x[1], 0)
     assert math.hypot(e, n) < 3.0
+
+
+def test_a_re_acquired_current_carries_the_calibrations_uncertainty() -> None:
+    """A compass reading 10 degrees low drifts the dead reckoning across the track, and
+    the re-acquisition fit, which moves only position and current, reads that drift as
+    a current.  The current it hands over must be as uncertain as the calibration that
+    could also explain it, and correlated with it, so that later ranges can still move
+    the heading bias rather than only the current (navd/filter/ekf_ranges.py)."""
+    noise = NoiseConfig(current_init_std_mps=0.01, heading_bias_init_std_deg=2.0)
+    f = _ekf(pos_std=2.0, noise=noise)
+    beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
+    speed, bias = 1.5, R(10.0)
+    true_lat, true_lon = LAT, LON
+    for k in range(1, 25):
+        for _ in range(100):  # 10 s at 10 Hz: the compass says 80, the vehicle runs 90
+            f.predict(f.t + 0.1, 0.1, R(90.0) - bias, speed, -1.0)
+        true_lat, true_lon = geodesy.offset_position(true_lat, true_lon, 0.0, speed * 10.0)
+        blat, blon = geodesy.offset_position(true_lat, true_lon, *beacons[k % 3])
+        r = geodesy.ecef_distance(true_lat, true_lon, -1.0, blat, blon, -1.0)
+        f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0))
+        if f.reacquisitions:
+            break
+    assert f.reacquisitions == 1
+    J = np.array(f.dv_dcal).reshape(2, 2)
+    P_cal = f.P[4:6, 4:6]
+    # at least the calibration's share of the water-relative velocity's uncertainty ...
+    excess = f.P[2:4, 2:4] - J @ P_cal @ J.T
+    assert np.all(np.linalg.eigvalsh(excess) > 0.0)
+    # ... and correlated with it as the error it may be
+    assert np.allclose(f.P[2:4, 4:6], -J @ P_cal)
+    assert np.allclose(f.P, f.P.T) and np.all(np.linalg.eigvalsh(f.P) > 0.0)

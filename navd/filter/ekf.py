@@ -26,7 +26,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import Corrections, StateEstimate
-from navd.filter.ekf_core import N_STATES
+from navd.filter.ekf_core import CAL_MEAN_S, N_STATES
 from navd.filter.ekf_ranges import RangeFusion
 from navd.filter.lsfix import Fix
 from navd.settings import NoiseConfig
@@ -104,6 +104,12 @@ class RangeEKF(RangeFusion):
         dn, de = vn * dt, ve * dt
         self.x[0], self.x[1] = geodesy.offset_position(lat, lon, dn, de, hd)
         self.track.step(t, dn, de)
+        w = min(1.0, dt / CAL_MEAN_S)
+        j = self.dv_dcal
+        j[0] += w * (-u * spsi - j[0])
+        j[1] += w * (speed * cpsi - j[1])
+        j[2] += w * (u * cpsi - j[2])
+        j[3] += w * (speed * spsi - j[3])
 
         F = _EYE.copy()
         F[0, 2] = dt

@@ -25,6 +25,9 @@ N_STATES = 8
 # Recent ranges the re-acquisition fit looks at, and the dead-reckoned track kept to
 # place them (also the round-trip geometry of each range).
 WINDOW_S = 300.0
+# the time constant of the calibration Jacobian's running mean: half the window, so that
+# it weighs the legs the fit saw (opposite legs cancel a heading bias's effect)
+CAL_MEAN_S = 0.5 * WINDOW_S
 
 
 class EkfCore:
@@ -42,6 +45,10 @@ class EkfCore:
         self.t_anchor = 0.0  # when the position was last pinned (GPS, re-acquisition)
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
+        # how the water-relative velocity (north, east) moves with heading bias and speed
+        # scale (F's position-calibration block over dt), averaged over about the window
+        # the re-acquisition fits (row-major: dvn/db, dvn/ds, dve/db, dve/ds)
+        self.dv_dcal = [0.0, 0.0, 0.0, 0.0]
 
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""

@@ -221,12 +221,22 @@ class RangeFusion(EkfCore):
         dx = np.zeros(N_STATES)
         dx[:4] = (hyp.d_north, hyp.d_east, hyp.dc_north, hyp.dc_east)
         self._apply(dx, m.vehicle_hd)
-        # the fit is now what is known of position and current; their correlation with
-        # the other states (bias, scale, beacon offset) came from the estimate it replaced
+        # The fit is now what is known of position and current.  Its current is the
+        # mean water-relative velocity the ranges imply over its window, which heading
+        # bias and speed scale move as much as the current does (the dead-reckoned track
+        # it was fitted along used the estimated calibration): the current's error is the
+        # fit's less J times the calibration's error, J the window's mean calibration
+        # Jacobian, so it carries the calibration's uncertainty and is correlated with
+        # it.  Correlations with the beacon offset are dropped.
         P = self.P.copy()
+        J = np.array(self.dv_dcal).reshape(2, 2)
+        P_cal = P[4:6, 4:6].copy()
         P[:4, :] = 0.0
         P[:, :4] = 0.0
         P[:4, :4] = hyp.cov
+        P[2:4, 2:4] += J @ P_cal @ J.T
+        P[2:4, 4:6] = -J @ P_cal
+        P[4:6, 2:4] = P[2:4, 4:6].T
         self.P = 0.5 * (P + P.T)
         self._limit_current()
         self._forget_ranges()
