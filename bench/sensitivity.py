@@ -60,8 +60,10 @@ def variants(sc: Scenario) -> list[tuple[str, Scenario]]:
 
 def _configured_rpm(sc: Scenario) -> float:
     """The RPM-to-speed map the crew configured (the scenario's ``config``), else the truth."""
-    speed = sc.config.get("navigation", {}).get("speed", {})
-    return float(speed.get("rpm_per_mps", sc.sensors.rpm_per_mps))
+    nav = sc.config.get("navigation")
+    speed = nav.get("speed") if isinstance(nav, dict) else None
+    rpm = speed.get("rpm_per_mps") if isinstance(speed, dict) else None
+    return float(rpm) if isinstance(rpm, int | float) else sc.sensors.rpm_per_mps
 
 
 def run_one(label: str, sc: Scenario, seed: int, workdir: Path) -> tuple[str, float, float]:
