@@ -183,7 +183,12 @@ class CalibrationBank:
 
     def corrections(self) -> Corrections | None:
         c = self.config.corrections()
-        return None if c is None else replace(c, calibration_doubt=self.w_uncal)
+        if c is None:
+            return None
+        # built directly: dataclasses.replace costs more than the rest of a tick's estimate
+        return Corrections(
+            c.heading_bias, c.speed_scale, c.beacon_offset_n, c.beacon_offset_e, self.w_uncal
+        )
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return self.config.state_diff(a, b)

@@ -33,7 +33,6 @@ from navd.settings import NoiseConfig
 
 __all__ = ["N_STATES", "RangeEKF"]
 
-_EYE = np.eye(N_STATES)
 _OFFSET_PRIOR_M2 = 1.0  # offset variance before any beacon is seen (unobserved, keeps P invertible)
 
 
@@ -111,7 +110,10 @@ class RangeEKF(RangeFusion):
         j[2] += w * (u * cpsi - j[2])
         j[3] += w * (speed * spsi - j[3])
 
-        F = _EYE.copy()
+        # F and Q are filled in place (a step is 10 Hz, twice over for the bank): F is the
+        # identity but for the position rows and the offsets' decay, Q diagonal but for
+        # the along/cross-track position block
+        F, Q = self._F, self._Q
         F[0, 2] = dt
         F[1, 3] = dt
         F[0, 4] = -u * spsi * dt
@@ -126,6 +128,12 @@ class RangeEKF(RangeFusion):
         tau = nz.input_corr_s
         var_along = (nz.speed_std_mps**2) * tau * dt
         var_cross = (u * math.radians(nz.heading_std_deg)) ** 2 * tau * dt
+        Q[0, 0] = var_along * cpsi * cpsi + var_cross * spsi * spsi
+        Q[1, 1] = var_along * spsi * spsi + var_cross * cpsi * cpsi
+        Q[0, 1] = Q[1, 0] = (var_along - var_cross) * cpsi * spsi
+        Q[2, 2] = Q[3, 3] = nz.current_walk_mps_per_sqrt_s**2 * dt
+        Q[4, 4] = math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
+        Q[5, 5] = nz.speed_scale_walk_per_sqrt_s**2 * dt
         if self.primary is not None:
             # first-order Gauss-Markov error of the beacon's own GPS: its expected value
             # decays towards zero as the error it was learned from wanders away, so the
@@ -134,40 +142,24 @@ class RangeEKF(RangeFusion):
             F[6, 6] = F[7, 7] = phi
             self.x[6] *= phi
             self.x[7] *= phi
+            Q[6, 6] = Q[7, 7] = self._off_std**2 * (1.0 - phi * phi)
+        else:
+            F[6, 6] = F[7, 7] = 1.0
+            Q[6, 6] = Q[7, 7] = 0.0
         P = F @ self.P @ F.T
         P += P.T  # symmetric by construction; this removes the round-off
         P *= 0.5
-        # Q, added in place: it is diagonal but for the along/cross-track position block
-        P[0, 0] += var_along * cpsi * cpsi + var_cross * spsi * spsi
-        P[1, 1] += var_along * spsi * spsi + var_cross * cpsi * cpsi
-        q01 = (var_along - var_cross) * cpsi * spsi
-        P[0, 1] += q01
-        P[1, 0] += q01
-        q_cur = nz.current_walk_mps_per_sqrt_s**2 * dt
-        P[2, 2] += q_cur
-        P[3, 3] += q_cur
-        P[4, 4] += math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
-        P[5, 5] += nz.speed_scale_walk_per_sqrt_s**2 * dt
-        if self.primary is not None:
-            q_off = self._off_std**2 * (1.0 - phi * phi)
-            P[6, 6] += q_off
-            P[7, 7] += q_off
+        P += Q
         self.P = P
         self.t = t
         if self.history.enabled:
-            self.history.add(t, F, self.x.copy(), self.P.copy())
+            self.history.add(t, F.copy(), self.x.copy(), self.P.copy())
 
     # -- outputs and smoother hooks ----------------------------------------------------
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
-        return StateEstimate(
-            float(x[0]),
-            float(x[1]),
-            float(x[2]),
-            float(x[3]),
-            float(P[0, 0]),
-            float(P[1, 1]),
-            float(P[0, 1]),
-        )
+        lat, lon, cn, ce = x[:4].tolist()
+        (pnn, pne), (_, pee) = P[:2, :2].tolist()
+        return StateEstimate(lat, lon, cn, ce, pnn, pee, pne)
 
     def estimate(self) -> StateEstimate:
         return self.estimate_of(self.x, self.P)

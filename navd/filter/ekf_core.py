@@ -49,6 +49,9 @@ class EkfCore:
         # scale (F's position-calibration block over dt), averaged over about the window
         # the re-acquisition fits (row-major: dvn/db, dvn/ds, dve/db, dve/ds)
         self.dv_dcal = [0.0, 0.0, 0.0, 0.0]
+        # the step's transition and process noise, filled in place by predict
+        self._F = np.eye(N_STATES)
+        self._Q = np.zeros((N_STATES, N_STATES))
 
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""

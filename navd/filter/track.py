@@ -28,8 +28,10 @@ class RecentTrack:
         self._e += de
         self._t.append(t)
         self._ne.append((self._n, self._e))
-        while self._t and self._t[0] < t - self.seconds:
-            self._t.popleft()
+        oldest = t - self.seconds
+        ts = self._t
+        while ts[0] < oldest:  # never empty: t itself was appended
+            ts.popleft()
             self._ne.popleft()
 
     def displacement_since(self, t0: float) -> tuple[float, float]:
