@@ -230,14 +230,15 @@ def _check_header(obj: object) -> JsonObject:
     return obj
 
 
-def _late_ok(rec: Record) -> float:
-    """How far a record may lie behind the records logged before it.
+# How far a record may lie behind the records logged before it.  A range is logged when
+# its reply completes; a tick when the loop gets to it, after the records that arrived
+# since its deadline, and one behind the clock steps nothing, so any lateness is harmless.
+_LATE_OK: dict[type, float] = {Range: MAX_LATE_S, TravelTime: MAX_LATE_S, Tick: math.inf}
 
-    A tick is logged when the loop gets to it, after the records that arrived since
-    its deadline; one behind the clock steps nothing, so any lateness is harmless."""
-    if isinstance(rec, Range | TravelTime):
-        return MAX_LATE_S
-    return math.inf if isinstance(rec, Tick) else 0.0
+
+def _late_ok(rec: Record) -> float:
+    """How far ``rec`` may lie behind the records logged before it (``_LATE_OK``)."""
+    return _LATE_OK.get(type(rec), 0.0)
 
 
 class _TimeRules:
@@ -275,10 +276,15 @@ class _TimeRules:
             self.conflicted = True
         elif rec.t > self.run_max:
             self.run_max = rec.t
-        out: list[tuple[int, Record | Skipped]] = []
-        while len(self.window) > HOLD_LINES:
-            out.append(self._leave())
-        return out
+        if len(self.window) <= HOLD_LINES:
+            return []
+        if not self.conflicted:
+            # the window in order (nearly every line): its oldest record is given on
+            no_old, old = self.window.popleft()
+            if old.t > self.last_t:
+                self.last_t = old.t
+            return [(no_old, old)]
+        return [self._leave()]
 
     def finish(self) -> list[tuple[int, Record | Skipped]]:
         return [self._leave() for _ in range(len(self.window))]
