@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
 	bench-robustness bench-soak bench-calibration bench-advisory bench-files check-armhf check-arm64 clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'
@@ -80,4 +80,4 @@ check-arm64: $(STAMP)
 	NAVD_ARCH=arm64 .ci/check-armhf
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache navd/filter/*.so

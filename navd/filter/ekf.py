@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from navd import geodesy
+from navd.filter import ekf_step
 from navd.filter.common import Corrections, StateEstimate
 from navd.filter.ekf_core import CAL_MEAN_S, N_STATES
 from navd.filter.ekf_ranges import RangeFusion
@@ -94,14 +95,17 @@ class RangeEKF(RangeFusion):
     # -- prediction --------------------------------------------------------------------
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""
-        lat, lon, cn, ce, b, s = self.x[:6].tolist()
-        psi = heading + b
-        u = s * speed
-        cpsi, spsi = math.cos(psi), math.sin(psi)
-        vn = u * cpsi + cn
-        ve = u * spsi + ce
-        dn, de = vn * dt, ve * dt
-        self.x[0], self.x[1] = geodesy.offset_position(lat, lon, dn, de, hd)
+        if self.primary is not None:
+            # first-order Gauss-Markov error of the beacon's own GPS: its expected value
+            # decays towards zero as the error it was learned from wanders away, so the
+            # nominal offset decays with the same phi as the error state
+            phi = math.exp(-dt / self._off_tau)
+            q_off = self._off_std**2 * (1.0 - phi * phi)
+        else:
+            phi, q_off = 1.0, 0.0
+        dn, de, u, cpsi, spsi = ekf_step.step(
+            self.x, self.P, self._F, self._Q, dt, heading, speed, hd, phi, q_off, self._step_noise
+        )
         self.track.step(t, dn, de)
         w = min(1.0, dt / CAL_MEAN_S)
         j = self.dv_dcal
@@ -109,51 +113,9 @@ class RangeEKF(RangeFusion):
         j[1] += w * (speed * cpsi - j[1])
         j[2] += w * (u * cpsi - j[2])
         j[3] += w * (speed * spsi - j[3])
-
-        # F and Q are filled in place (a step is 10 Hz, twice over for the bank): F is the
-        # identity but for the position rows and the offsets' decay, Q diagonal but for
-        # the along/cross-track position block
-        F, Q = self._F, self._Q
-        F[0, 2] = dt
-        F[1, 3] = dt
-        F[0, 4] = -u * spsi * dt
-        F[1, 4] = u * cpsi * dt
-        F[0, 5] = speed * cpsi * dt
-        F[1, 5] = speed * spsi * dt
-
-        nz = self.noise
-        # Heading and speed errors are correlated over input_corr_s, so their effect on
-        # position grows like a random walk with that time constant (first-order
-        # Gauss-Markov, short correlation): q = sigma^2 * tau per second.
-        tau = nz.input_corr_s
-        var_along = (nz.speed_std_mps**2) * tau * dt
-        var_cross = (u * math.radians(nz.heading_std_deg)) ** 2 * tau * dt
-        Q[0, 0] = var_along * cpsi * cpsi + var_cross * spsi * spsi
-        Q[1, 1] = var_along * spsi * spsi + var_cross * cpsi * cpsi
-        Q[0, 1] = Q[1, 0] = (var_along - var_cross) * cpsi * spsi
-        Q[2, 2] = Q[3, 3] = nz.current_walk_mps_per_sqrt_s**2 * dt
-        Q[4, 4] = math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
-        Q[5, 5] = nz.speed_scale_walk_per_sqrt_s**2 * dt
-        if self.primary is not None:
-            # first-order Gauss-Markov error of the beacon's own GPS: its expected value
-            # decays towards zero as the error it was learned from wanders away, so the
-            # nominal offset decays with the same phi as the error state
-            phi = math.exp(-dt / self._off_tau)
-            F[6, 6] = F[7, 7] = phi
-            self.x[6] *= phi
-            self.x[7] *= phi
-            Q[6, 6] = Q[7, 7] = self._off_std**2 * (1.0 - phi * phi)
-        else:
-            F[6, 6] = F[7, 7] = 1.0
-            Q[6, 6] = Q[7, 7] = 0.0
-        P = F @ self.P @ F.T
-        P += P.T  # symmetric by construction; this removes the round-off
-        P *= 0.5
-        P += Q
-        self.P = P
         self.t = t
         if self.history.enabled:
-            self.history.add(t, F.copy(), self.x.copy(), self.P.copy())
+            self.history.add(t, self._F.copy(), self.x.copy(), self.P.copy())
 
     # -- outputs and smoother hooks ----------------------------------------------------
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:

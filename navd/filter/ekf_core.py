@@ -18,6 +18,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import History
+from navd.filter.ekf_step import Noise
 from navd.filter.track import RecentTrack
 from navd.settings import NoiseConfig
 
@@ -50,8 +51,17 @@ class EkfCore:
         # the re-acquisition fits (row-major: dvn/db, dvn/ds, dve/db, dve/ds)
         self.dv_dcal = [0.0, 0.0, 0.0, 0.0]
         # the step's transition and process noise, filled in place by predict
+        # (navd/filter/ekf_step.py), and the noise model as that step takes it
         self._F = np.eye(N_STATES)
         self._Q = np.zeros((N_STATES, N_STATES))
+        self._step_noise: Noise = (
+            noise.speed_std_mps,
+            math.radians(noise.heading_std_deg),
+            noise.input_corr_s,
+            noise.current_walk_mps_per_sqrt_s,
+            math.radians(noise.heading_bias_walk_deg_per_sqrt_s),
+            noise.speed_scale_walk_per_sqrt_s,
+        )
 
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""
