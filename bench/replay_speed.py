@@ -12,6 +12,7 @@ and the peak RSS of ``navd replay`` on each, without and with ``--smooth``.
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -22,6 +23,7 @@ from typing import Any, cast
 from bench.common import mode_config, report
 from navd import files
 from navd.analysis.score import position_rms, score
+from navd.filter import ekf_step
 from navd.formats import jsonlines
 from navd.formats.outputs import read_outputs
 from navd.formats.truth import read_truth
@@ -63,11 +65,13 @@ _HWM = (
 )
 
 
-def _run(cmd: list[str]) -> tuple[float, float]:
-    """Wall time (s) and peak RSS (MB) of ``python -m MODULE ARGS`` or ``python FILE ARGS``."""
+def _run(cmd: list[str], pure: bool = False) -> tuple[float, float]:
+    """Wall time (s) and peak RSS (MB) of ``python -m MODULE ARGS`` or ``python FILE ARGS``
+    (``pure``: with navd's compiled prediction step kept out, navd/filter/ekf_step.py)."""
     target = cmd[2:] if cmd[1] == "-m" else cmd[1:]
+    env = {**os.environ, "NAVD_PURE_PYTHON": "1"} if pure else None
     t0 = time.perf_counter()
-    r = subprocess.run([cmd[0], "-c", _HWM, *target], capture_output=True, text=True)
+    r = subprocess.run([cmd[0], "-c", _HWM, *target], capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
     hwm = [ln for ln in r.stderr.splitlines() if ln.startswith("HWM ")]
     if r.returncode not in (0, None) or not hwm:
@@ -91,12 +95,17 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
         ((o["t"], o["lat"], o["lon"]) for o in jsonlines.read(d / "floor.jsonl")), truth
     )
     rows = []
-    for mode, smooth in (("default", False), ("thesis", False), ("default", True)):
-        best = min(_run(_replay_cmd(d, mode, smooth))[0] for _ in range(runs))
+    runs_of = (("default", False, False), ("default", False, True), ("thesis", False, False),
+               ("default", True, False))
+    for mode, smooth, pure in runs_of:
+        if pure and not ekf_step.COMPILED:
+            continue  # the row above took the reference step already
+        best = min(_run(_replay_cmd(d, mode, smooth), pure)[0] for _ in range(runs))
         out = read_outputs(d / "out.jsonl")
         steps = sum(1 for o in out if isinstance(o, Estimate))
         ranges = sum(1 for o in out if isinstance(o, RangeDecision))
-        label = mode + (" + RTS smoother" if smooth else "")
+        label = mode + (" + RTS smoother" if smooth else "") + (
+            ", Python step (`NAVD_PURE_PYTHON=1`)" if pure else "")
         rows.append(
             f"| {label} | {n_lines} | {steps} | {ranges} | {best:.2f} | "
             f"{out[-1].t / best:,.0f} | {1e6 * best / steps:.0f} | {best / floor:.1f} "
@@ -108,7 +117,10 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
         "orjson, an 8-state EKF over the same steps and updates, the same number of "
         f"lines written) in the same run: **{floor:.2f} s**, RMS {floor_rms:.1f} m against "
         "the truth (a floor that navigates, not a rival). Simulating the mission took "
-        f"{sim_s:.2f} s.",
+        f"{sim_s:.2f} s. The default mode's prediction step is "
+        + ("compiled (navd/filter/_ekf_step.c)" if ekf_step.COMPILED else
+           "Python's (no C compiler when navd was installed)")
+        + ", but where the row says otherwise.",
         "",
         "| mode | log records | filter steps out | ranges | wall time (s) | x real time "
         "| us per step | / numpy floor | RMS (m) |",
