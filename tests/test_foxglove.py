@@ -18,6 +18,18 @@ from navd.hil.bench_vehicle import BenchVehicle
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 
 
+_RESUBSCRIBE_S = 3.0  # every topic here publishes at least once a second
+
+
+async def _subscribe(
+    ws: websockets.ClientConnection, subs: dict[int, str], channel: int, topic: str
+) -> None:
+    sid = len(subs) + 1
+    subs[sid] = topic
+    await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+        {"id": sid, "channelId": channel}]}))  # fmt: skip
+
+
 async def _receive(
     port: int, topics: list[str], timeout: float, schemas: dict[str, str] | None = None
 ) -> dict[str, bytes]:
@@ -25,13 +37,24 @@ async def _receive(
     ``schemas``, the schema each was advertised with)."""
     got: dict[str, bytes] = {}
     subs: dict[int, str] = {}
+    channels: dict[int, str] = {}  # advertised, by channel id
     async with websockets.connect(
         f"ws://127.0.0.1:{port}",
         subprotocols=SUBPROTOCOLS,  # type: ignore[arg-type]
     ) as ws:
         async with asyncio.timeout(timeout):
+            again = time.monotonic() + _RESUBSCRIBE_S
             while len(got) < len(topics):
                 frame = await ws.recv()
+                if time.monotonic() > again:
+                    # The SDK's server can advertise a new channel a moment before it
+                    # takes subscriptions to it: on a loaded machine the subscribe comes
+                    # back "unknown channel" and nothing follows.  Subscribe again to what
+                    # was advertised and has sent nothing, as a viewer reopening a panel.
+                    again = time.monotonic() + _RESUBSCRIBE_S
+                    for cid, topic in channels.items():
+                        if topic not in got:
+                            await _subscribe(ws, subs, cid, topic)
                 if isinstance(frame, str):
                     msg = json.loads(frame)
                     if msg.get("op") != "advertise":
@@ -40,10 +63,8 @@ async def _receive(
                     for c in want:
                         if schemas is not None:
                             schemas[c["topic"]] = c.get("schema", "")
-                        sid = len(subs) + 1
-                        subs[sid] = c["topic"]
-                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                            {"id": sid, "channelId": c["id"]}]}))  # fmt: skip
+                        channels[c["id"]] = c["topic"]
+                        await _subscribe(ws, subs, c["id"], c["topic"])
                 elif frame[0] == 0x01:  # MessageData: op, subscription, log time, payload
                     (sid,) = struct.unpack_from("<I", frame, 1)
                     topic = subs.get(sid)
