@@ -69,7 +69,7 @@ _RK_STEP_M = 5000.0
 # and walking it must still take bounded time (1e300 m would never finish).
 _RK_MAX_STEPS = 8100
 # Shorter moves (every filter step) take one midpoint step instead of RK4.
-_MIDPOINT_MAX_M = 50.0
+MIDPOINT_MAX_M = 50.0
 
 
 def prime_vertical_radius(lat: float, ell: Ellipsoid = WGS84) -> float:
@@ -194,26 +194,15 @@ def destination(
     if distance == 0.0:
         return lat, lon, azimuth
     a, e2 = ell.a, ell.e2
-    if abs(distance) <= _MIDPOINT_MAX_M:
-        # the filter's 10 Hz steps: the midpoint rule's error, ~(d/R)^3 R, is below 1e-12 m.
-        # _geodesic_rates written out twice: this runs three times a filter tick.
-        s = math.sin(lat)
-        w2 = 1.0 - e2 * s * s
-        n = a / math.sqrt(w2) + hd
-        m = a * (1.0 - e2) / (w2 * math.sqrt(w2)) + hd
+    if abs(distance) <= MIDPOINT_MAX_M:
+        # the filter's 10 Hz steps: the midpoint rule's error, ~(d/R)^3 R, is below 1e-12 m
+        k1 = _geodesic_rates(lat, azimuth, hd, a, e2)
         h2 = 0.5 * distance
-        lat_m = lat + h2 * (math.cos(azimuth) / m)
-        az_m = azimuth + h2 * (math.sin(azimuth) * s / (n * math.cos(lat)))
-        s = math.sin(lat_m)
-        w2 = 1.0 - e2 * s * s
-        n = a / math.sqrt(w2) + hd
-        m = a * (1.0 - e2) / (w2 * math.sqrt(w2)) + hd
-        sa = math.sin(az_m)
-        ncl = n * math.cos(lat_m)
+        k2 = _geodesic_rates(lat + h2 * k1[0], azimuth + h2 * k1[2], hd, a, e2)
         return (
-            lat + distance * (math.cos(az_m) / m),
-            wrap_lon(lon + distance * (sa / ncl)),
-            azimuth + distance * (sa * s / ncl),
+            lat + distance * k2[0],
+            wrap_lon(lon + distance * k2[1]),
+            azimuth + distance * k2[2],
         )
     if not math.isfinite(distance):
         return math.nan, math.nan, math.nan

@@ -68,7 +68,7 @@ def test_the_compiled_step_does_the_references_arithmetic(
     q_off = 9.0 * (1.0 - phi * phi)
     ref = ekf_step.predict_step(xa, Pa, Fa, Qa, dt, heading, speed, hd, phi, q_off, NOISE)
     assert compiled is not None
-    got = compiled(xb, Pb, Fb, Qb, dt, heading, speed, hd, phi, q_off, NOISE, ekf_step._ELLIPSOID)
+    got = compiled(xb, Pb, Fb, Qb, dt, heading, speed, hd, phi, q_off, NOISE, ekf_step._GEODESIC)
     assert got is not None
     np.testing.assert_allclose(got, ref, rtol=1e-14, atol=1e-15)
     # a position a few ulps apart at most (the geodesic's hypot is libm's, not Python's)
@@ -91,7 +91,7 @@ def test_the_compiled_step_takes_any_numbers_without_raising(values: list[float]
     P[0, 0] = p00
     before = (x.copy(), P.copy())
     assert compiled is not None
-    got = compiled(x, P, F, Q, dt, heading, speed, hd, phi, q_off, NOISE, ekf_step._ELLIPSOID)
+    got = compiled(x, P, F, Q, dt, heading, speed, hd, phi, q_off, NOISE, ekf_step._GEODESIC)
     if got is None:
         # not an ordinary step: nothing changed, the reference takes it
         np.testing.assert_array_equal(x, before[0])
@@ -106,10 +106,10 @@ def test_arrays_it_cannot_borrow_go_to_the_reference() -> None:
     assert compiled is not None
     # a transposed view and a Fortran-ordered copy are not C-contiguous
     for bad_P in (np.asfortranarray(P), P.T, P.astype(np.float32), np.eye(9), [[0.0]]):
-        args = (x, bad_P, F, Q, 0.1, 0.3, 1.5, -2.0, 1.0, 0.0, NOISE, ekf_step._ELLIPSOID)
+        args = (x, bad_P, F, Q, 0.1, 0.3, 1.5, -2.0, 1.0, 0.0, NOISE, ekf_step._GEODESIC)
         assert compiled(*args) is None
     # a step over 50 m (a long gap crossed in one step) is the reference's
-    long_step = (x, P, F, Q, 100.0, 0.3, 1.5, -2.0, 1.0, 0.0, NOISE, ekf_step._ELLIPSOID)
+    long_step = (x, P, F, Q, 100.0, 0.3, 1.5, -2.0, 1.0, 0.0, NOISE, ekf_step._GEODESIC)
     assert compiled(*long_step) is None
 
 

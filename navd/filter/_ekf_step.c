@@ -4,9 +4,9 @@
  * tick for every tick of a mission, and in numpy its 8x8 products cost more in calls
  * than in arithmetic.
  *
- * Only the ordinary step is taken here: a move of at most MIDPOINT_MAX_M metres
- * (one midpoint step along the geodesic, as navd.geodesy.destination) with finite
- * inputs.  Anything else returns None having changed nothing, and the caller takes
+ * Only the ordinary step is taken here: a move short enough for one midpoint step
+ * along the geodesic (navd.geodesy.destination, whose limit and ellipsoid the caller
+ * passes in) with finite inputs.  Anything else returns None having changed nothing, and the caller takes
  * the reference step, as does an array that is not a C-contiguous float64 one.  The
  * arrays are borrowed through the buffer protocol, so no numpy headers are needed to
  * build this.
@@ -16,7 +16,6 @@
 #include <math.h>
 
 #define N 8
-#define MIDPOINT_MAX_M 50.0 /* navd.geodesy._MIDPOINT_MAX_M */
 
 /* The array as a C buffer of n float64, or 0 (no exception set) if it is not one: a
  * covariance that is a view, or of another type, takes the reference step. */
@@ -63,10 +62,10 @@ predict(PyObject *self, PyObject *args)
 {
     PyObject *ox, *oP, *oF, *oQ;
     double dt, heading, speed, hd, phi, q_off;
-    double speed_std, heading_std, tau, cur_walk, bias_walk, scale_walk, a, e2;
-    if (!PyArg_ParseTuple(args, "OOOOdddddd(dddddd)(dd)", &ox, &oP, &oF, &oQ, &dt, &heading,
+    double speed_std, heading_std, tau, cur_walk, bias_walk, scale_walk, a, e2, midpoint_max;
+    if (!PyArg_ParseTuple(args, "OOOOdddddd(dddddd)(ddd)", &ox, &oP, &oF, &oQ, &dt, &heading,
                           &speed, &hd, &phi, &q_off, &speed_std, &heading_std, &tau, &cur_walk,
-                          &bias_walk, &scale_walk, &a, &e2))
+                          &bias_walk, &scale_walk, &a, &e2, &midpoint_max))
         return NULL;
 
     Py_buffer bx, bP, bF, bQ;
@@ -90,7 +89,7 @@ predict(PyObject *self, PyObject *args)
     double cpsi = cos(psi), spsi = sin(psi);
     double dn = (u * cpsi + cn) * dt, de = (u * spsi + ce) * dt;
     double dist = hypot(dn, de);
-    if (!(dist <= MIDPOINT_MAX_M) || !isfinite(lat) || !isfinite(lon) || !isfinite(hd) ||
+    if (!(dist <= midpoint_max) || !isfinite(lat) || !isfinite(lon) || !isfinite(hd) ||
         !isfinite(phi)) {
         result = Py_NewRef(Py_None); /* not an ordinary step: the reference takes it */
         goto done;
@@ -167,7 +166,7 @@ done:
 
 static PyMethodDef methods[] = {
     {"predict", predict, METH_VARARGS,
-     "predict(x, P, F, Q, dt, heading, speed, hd, phi, q_off, noise, ellipsoid): the "
+     "predict(x, P, F, Q, dt, heading, speed, hd, phi, q_off, noise, geodesic): the "
      "ordinary step in place, returning (dn, de, u, cos psi, sin psi); None if the step "
      "is not an ordinary one (nothing changed)."},
     {NULL, NULL, 0, NULL},

@@ -13,6 +13,6 @@ def predict(
     phi: float,
     q_off: float,
     noise: tuple[float, float, float, float, float, float],
-    ellipsoid: tuple[float, float],
+    geodesic: tuple[float, float, float],
     /,
 ) -> tuple[float, float, float, float, float] | None: ...

@@ -5,9 +5,10 @@ Q filled in, and the covariance propagated, all in place.
 ``predict_step`` is the reference.  Where a C compiler was at hand when navd was
 installed, ``navd.filter._ekf_step`` does the same arithmetic compiled (a replay
 takes this step twice a tick, and in numpy its 8x8 products cost more in calls than
-in arithmetic); it takes only the ordinary step, a move of at most 50 m with finite
-inputs, and hands anything else back to the reference.  ``NAVD_PURE_PYTHON=1`` in
-the environment keeps the compiled step out (to compare the two, or to rule it out).
+in arithmetic); it takes only the ordinary step, a move short enough for one midpoint
+step of navd.geodesy.destination with finite inputs, and hands anything else back to
+the reference.  ``NAVD_PURE_PYTHON=1`` in the environment keeps the compiled step out
+(to compare the two, or to rule it out).
 Compiled, a step differs from the reference in the last bits of the covariance (its
 sums run in another order): tests/test_ekf_step.py holds the two together.
 """
@@ -29,7 +30,9 @@ Noise = tuple[float, float, float, float, float, float]
 #: surge speed u and the cosine and sine of the corrected heading
 Moved = tuple[float, float, float, float, float]
 
-_ELLIPSOID = (geodesy.WGS84.a, geodesy.WGS84.e2)
+#: what the compiled step needs of navd.geodesy: the ellipsoid (a, e^2) and the longest
+#: move destination() takes in one midpoint step
+_GEODESIC = (geodesy.WGS84.a, geodesy.WGS84.e2, geodesy.MIDPOINT_MAX_M)
 
 
 def predict_step(
@@ -93,7 +96,7 @@ def predict_step(
 
 _Compiled = Callable[
     [np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float, float, float, float, float,
-     Noise, tuple[float, float]],
+     Noise, tuple[float, float, float]],
     Moved | None,
 ]
 
@@ -129,7 +132,7 @@ def step(
 ) -> Moved:
     """:func:`predict_step`, compiled where it can be."""
     if _compiled is not None:
-        moved = _compiled(x, P, F, Q, dt, heading, speed, hd, phi, q_off, noise, _ELLIPSOID)
+        moved = _compiled(x, P, F, Q, dt, heading, speed, hd, phi, q_off, noise, _GEODESIC)
         if moved is not None:
             return moved
     return predict_step(x, P, F, Q, dt, heading, speed, hd, phi, q_off, noise)

@@ -81,7 +81,6 @@ def _num(obj: JsonObject, key: str) -> float:
         return v
     if key not in obj:
         raise _Bad(f"missing field '{key}'")
-    v = obj[key]
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise _Bad(f"field '{key}' must be a number, got {type(v).__name__}")
     if not math.isfinite(v):
