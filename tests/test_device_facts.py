@@ -559,7 +559,7 @@ def test_gx3_a_new_hard_iron_read_supersedes_unanswered_ones() -> None:
 @pytest.mark.parametrize("size", [1, 16, 256, 4096])
 def test_the_modem_decoder_reads_the_same_at_any_read_size(size: int) -> None:
     """The ATM-900's lines as Goby's driver knows them, handed over in reads of ``size``
-    bytes as a UART or the 20 ms read window does: the same records, the same modes and
+    bytes as a UART or the 50 ms read window does: the same records, the same modes and
     replies as in one read.  (No public capture of an ATM-900 exists to replay here.)"""
     text = (
         b"Command '+++' not found\r\n\r\nuser:1> "

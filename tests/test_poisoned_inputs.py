@@ -105,7 +105,7 @@ def test_emulated_modem_paces_its_lines_at_the_baud_rate(tmp_path: Path) -> None
         )
         got: list[tuple[float, object]] = []
         # read every millisecond: what is timed here is the emulator's line, not the
-        # daemon's 20 ms read window (navd/drivers/transport.py)
+        # daemon's 50 ms read window (navd/drivers/transport.py)
         tr = SerialTransport(
             str(emu.path),
             9600,

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from navd.drivers import ahrs, castle, gps, keller, modem
-from navd.drivers.transport import SerialTransport
+from navd.drivers.transport import READ_WINDOW_S, SerialTransport
 from navd.hil.emulators.ahrs import AhrsEmulator
 from navd.hil.emulators.castle import CastleEmulator
 from navd.hil.emulators.gps import GpsEmulator
@@ -238,9 +238,9 @@ def test_modem_emulator_hears_the_world_channel(tmp_path: Path) -> None:
 def test_a_quiet_port_stays_open_and_a_paced_line_is_read_in_few_wake_ups(
     tmp_path: Path,
 ) -> None:
-    """Ports are read every 20 ms, not at every byte: an idle tty (whose empty reads look
-    like a hang-up's) is kept, and a 4800-baud GPS, whose bytes arrive two at a time,
-    is read at most once a window with every sentence intact."""
+    """Ports are read once a read window (50 ms), not at every byte: an idle tty (whose
+    empty reads look like a hang-up's) is kept, and a 4800-baud GPS, whose bytes arrive
+    two at a time, is read at most once a window with every sentence intact."""
 
     async def main() -> None:
         quiet = GpsEmulator(tmp_path / "quiet")  # never started: says nothing
@@ -265,7 +265,7 @@ def test_a_quiet_port_stays_open_and_a_paced_line_is_read_in_few_wake_ups(
         assert idle.health.opens == 1 and idle.health.reconnects == 0
         assert tr.health.reconnects == 0
         assert sum(isinstance(r, Gps) for r in got) >= 2
-        assert reads <= 3.0 / 0.02 + 2
+        assert reads <= 3.0 / READ_WINDOW_S + 2
         await tr.stop()
         await idle.stop()
         quiet.close()

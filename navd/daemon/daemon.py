@@ -21,6 +21,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from navd.config import log_dir
+from navd.daemon import pace
 from navd.daemon.checkpoint import (
     Checkpoints,
     checkpoint_dir,
@@ -235,7 +236,7 @@ class Daemon:
     async def _log_flusher(self) -> None:
         last_sync = self.clock()
         while True:
-            await asyncio.sleep(LOG_FLUSH_S)
+            await pace.sleep_to_next(LOG_FLUSH_S, self.clock)
             if self.clock() - last_sync >= self.cfg.log.fsync_s:
                 self.rlog.sync()
                 last_sync = self.clock()

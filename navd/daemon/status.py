@@ -4,9 +4,9 @@ log, the checkpoints and the zenoh session; and the list of what is not well."""
 
 from __future__ import annotations
 
-import asyncio
 import typing
 
+from navd.daemon import pace
 from navd.daemon.devices.base import HealthSections
 from navd.daemon.devices.modem import idle_sections
 from navd.daemon.health import RECENT_S
@@ -76,7 +76,7 @@ async def every_second(d: Daemon) -> None:
     """Once a second: the devices' own checks, then health and the observability
     advisory, to the log and to zenoh."""
     while True:
-        await asyncio.sleep(1.0)
+        await pace.sleep_to_next(1.0, d.clock)
         now = d.clock()
         for dev in d.devices.values():
             dev.every_second(now)

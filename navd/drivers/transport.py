@@ -2,13 +2,15 @@
 
 A port is a device path or a pyserial URL (``socket://host:port`` for gpsd).
 
-The port is opened non-blocking and read every ``read_window_s`` (20 ms), on a grid
+The port is opened non-blocking and read every ``read_window_s`` (50 ms), on a grid
 of the event loop's clock that every port shares, so the daemon's five ports are
-read in one wake-up.  Watching each descriptor with ``add_reader`` instead woke the
+read in one wake-up, and the daemon's other timers fall on the same grid
+(navd/daemon/pace.py).  Watching each descriptor with ``add_reader`` instead woke the
 loop for every few bytes a UART hands over (a 4800-baud GPS some 120 times a
 second), and each wake-up cost more than its bytes.  Bytes wait in the kernel's
-buffer meanwhile, so none is lost, and a record is stamped at most 20 ms late (3 cm
-of a vehicle's travel at 1.5 m/s, against ranges good to metres).  Arriving bytes
+buffer meanwhile, so none is lost, and a record is stamped at most 50 ms late (8 cm
+of a vehicle's travel at 1.5 m/s, against ranges good to metres); the filter's tick
+is two windows, so what arrived before a tick is read before it.  Arriving bytes
 are stamped with ``time.monotonic()`` and fed to the device's decoder, whose
 records go to ``on_record``.  A port that vanishes (USB unplugged,
 read error, EOF) is closed, counted and reopened with exponential backoff; the
@@ -34,8 +36,8 @@ from navd.drivers.codec import Decoder, feed_guarded
 
 log = logging.getLogger(__name__)
 
-READ_WINDOW_S = 0.02
-_READ_MAX = 1 << 16  # more than 20 ms of any serial line; a socket's backlog is read in turns
+READ_WINDOW_S = 0.05
+_READ_MAX = 1 << 16  # more than 50 ms of any serial line; a socket's backlog is read in turns
 
 
 class _Reader:

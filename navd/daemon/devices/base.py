@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import asyncio
 from collections import deque
 from collections.abc import Callable, Coroutine
 from typing import Protocol, TypedDict
 
+from navd.daemon import pace
 from navd.daemon.health import RECENT_S, Vitals
 from navd.drivers.codec import Decoder, DeviceError
 from navd.drivers.transport import SerialTransport
@@ -127,10 +127,8 @@ class Device:
     async def poll(self, hz: float, request: Callable[[], bytes]) -> None:
         """Ask ``request()`` at ``hz`` on absolute deadlines, while the port is open."""
         period = 1.0 / hz
-        nxt = self.host.clock()
         while True:
-            nxt += period
-            await asyncio.sleep(max(0.0, nxt - self.host.clock()))
+            await pace.sleep_to_next(period, self.host.clock)
             if self.connected:
                 self.write(request())
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 
+from navd.daemon import pace
 from navd.daemon.devices.base import Device, HealthSections, Host, Job
 from navd.drivers import modem
 from navd.drivers.transport import SerialTransport
@@ -13,6 +14,7 @@ from navd.records import Range
 from navd.settings import ModemDevice
 
 UNREADY_S = 10.0  # this long outside command mode is said in health
+_KEEPER_S = 0.1  # how often the command-mode session is looked after
 #: how every ping ended, counted in health's ``pings``
 PING_COUNTS = (
     "sent",
@@ -132,7 +134,7 @@ class ModemPinger(Device):
     async def _keeper(self) -> None:
         """Bring the modem into command mode and keep it there (ModemSession)."""
         while True:
-            await asyncio.sleep(0.1)
+            await pace.sleep_to_next(_KEEPER_S, self.host.clock)
             if not self.connected:
                 continue
             data = self.session.poll(self.host.clock())
