@@ -7,13 +7,17 @@ moves, through the same handlers its serial tasks call.
 from __future__ import annotations
 
 import asyncio
+import math
 from pathlib import Path
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from navd.daemon.daemon import Daemon
 from navd.daemon.devices import Ahrs, ModemPinger
 from navd.daemon.devices.modem import PING_COUNTS
+from navd.daemon.health import RecentTimes
 from navd.drivers import ahrs, castle, keller, modem
 from navd.drivers.transport import PortHealth
 from navd.filter import Navigator
@@ -295,3 +299,18 @@ def test_each_device_says_its_own_part_and_an_absent_one_idles(tmp_path: Path) -
     assert h.pings == {**dict.fromkeys(PING_COUNTS, 0), "last": []}
     assert h.modem == {"mode": "unknown", "ready": False, "escapes": 0}
     assert h.temperature_c is None
+
+
+@given(st.lists(st.floats(-1.0, 1.0) | st.just(math.nan), max_size=60), st.integers(1, 20))
+def test_recent_tick_times_give_the_quantiles_of_the_last_n(xs: list[float], n: int) -> None:
+    """Health's tick lateness and publish latency: the quantiles of the last ``n`` times,
+    as sorting them would give (a NaN is not a time, and is left out)."""
+    recent = RecentTimes(n)
+    for x in xs:
+        recent.append(x)
+    last = sorted([x for x in xs if not math.isnan(x)][-n:])
+    assert len(recent) == len(last)
+    for q in (0.0, 0.5, 0.99):
+        want = last[min(len(last) - 1, int(q * len(last)))] if last else None
+        assert recent.quantile(q) == want
+    assert recent.max() == (last[-1] if last else None)

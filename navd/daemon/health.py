@@ -11,6 +11,8 @@ not well.  It is pure: the caller passes the time.
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -87,15 +89,38 @@ class Vitals:
         return out
 
 
-def _percentile(xs: list[float], q: float) -> float | None:
-    if not xs:
-        return None
-    s = sorted(xs)
-    return s[min(len(s) - 1, int(q * len(s)))]
-
-
 def _ms(x: float | None) -> float | None:
     return None if x is None else round(x * 1000.0, 3)
+
+
+class RecentTimes:
+    """The last ``n`` of a stream of times, also kept in order of size as they come, so
+    that a quantile is read once a second without sorting thousands of them each time
+    (four sorts of 6,000 a second were a tenth of the daemon's CPU)."""
+
+    __slots__ = ("_arrived", "_sorted")
+
+    def __init__(self, n: int) -> None:
+        self._arrived: deque[float] = deque(maxlen=n)
+        self._sorted: list[float] = []
+
+    def append(self, x: float) -> None:
+        if not math.isfinite(x):
+            return  # a clock's difference; a NaN would break the order
+        if len(self._arrived) == self._arrived.maxlen:
+            del self._sorted[bisect.bisect_left(self._sorted, self._arrived[0])]
+        self._arrived.append(x)
+        bisect.insort(self._sorted, x)
+
+    def __len__(self) -> int:
+        return len(self._arrived)
+
+    def quantile(self, q: float) -> float | None:
+        s = self._sorted
+        return s[min(len(s) - 1, int(q * len(s)))] if s else None
+
+    def max(self) -> float | None:
+        return self._sorted[-1] if self._sorted else None
 
 
 @dataclass(slots=True)
@@ -103,19 +128,19 @@ class TickTimes:
     """How late the filter's ticks ran, and how soon their estimates reached zenoh
     (from the tick's deadline), over the last 6,000 of each."""
 
-    lateness: deque[float] = field(default_factory=lambda: deque(maxlen=6000))
-    publish: deque[float] = field(default_factory=lambda: deque(maxlen=6000))
+    lateness: RecentTimes = field(default_factory=lambda: RecentTimes(6000))
+    publish: RecentTimes = field(default_factory=lambda: RecentTimes(6000))
     overruns: int = 0
     ticks: int = 0
 
     def lateness_ms(self) -> dict[str, float | None]:
-        lat = list(self.lateness)
+        lat = self.lateness
         return {
-            "p50": _ms(_percentile(lat, 0.5)),
-            "p99": _ms(_percentile(lat, 0.99)),
-            "max": _ms(max(lat) if lat else None),
+            "p50": _ms(lat.quantile(0.5)),
+            "p99": _ms(lat.quantile(0.99)),
+            "max": _ms(lat.max()),
         }
 
     def publish_ms(self) -> dict[str, float | None]:
-        pub = list(self.publish)
-        return {"p50": _ms(_percentile(pub, 0.5)), "p99": _ms(_percentile(pub, 0.99))}
+        pub = self.publish
+        return {"p50": _ms(pub.quantile(0.5)), "p99": _ms(pub.quantile(0.99))}
