@@ -111,9 +111,9 @@ def main() -> int:
             "",
             "| measure | value | target |",
             "|---|---|---|",
-            f"| CPU, % of one core | {cpu:.1f} | < 1.5 |",
-            f"| of which the Python thread / zenoh's and other threads | {cpu_main:.1f} / "
-            f"{cpu_other:.1f} | |",
+            f"| CPU, % of one core | {cpu:.2f} | < 1.5 |",
+            f"| of which the Python thread / zenoh's and other threads | {cpu_main:.2f} / "
+            f"{cpu_other:.2f} | |",
             f"| peak RSS (MB) | {hwm:.0f} | |",
             f"| tick lateness p50 / p99 / max (ms) | {tl['p50']} / {tl['p99']} / {tl['max']} "
             "| p99 < 5 |",

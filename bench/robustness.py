@@ -29,7 +29,7 @@ import statistics
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -251,9 +251,21 @@ class Result:
         return d.surfacing_m > limit or d.current_rms_mps > DIVERGED_CURRENT_MPS
 
 
-def run_one(seed: int, workdir: str, noise_seed: int | None = None) -> Result:
-    """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise."""
-    dr = draw(seed)
+def clean(dr: Draw) -> Draw:
+    """The same mission with no outliers to refuse: no multipath and no corrupt beacon
+    positions, the ranges an ideal outlier detector would keep (drops stay: a ping that
+    never came is no outlier, and the bound counts without it too)."""
+    acoustics = {**dr.scenario["acoustics"], "multipath_prob": 0.0,
+                 "corrupt_position_prob": 0.0, "corrupt_gross_prob": 0.0}
+    return replace(dr, outliers=0.0, scenario={**dr.scenario, "acoustics": acoustics})
+
+
+def run_one(
+    seed: int, workdir: str, noise_seed: int | None = None, no_outliers: bool = False
+) -> Result:
+    """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
+    with ``no_outliers``, without its outliers (:func:`clean`)."""
+    dr = clean(draw(seed)) if no_outliers else draw(seed)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
@@ -405,6 +417,12 @@ def main() -> int:
         "--only", choices=list(CLASSES), help="of seeds 1..--missions, those of this class"
     )
     p.add_argument("--missions-out", help="write one line per mission (JSON) to this file")
+    p.add_argument(
+        "--no-outliers",
+        action="store_true",
+        help="the same missions without multipath or corrupt beacon positions (what the "
+        "bound's ideal outlier detector is worth)",
+    )
     args = p.parse_args()
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
@@ -414,8 +432,10 @@ def main() -> int:
     # each mission's files are written and read by the one worker that runs it
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
+        n = len(seeds)
         results = run_all(
-            run_one, seeds, [tmp] * len(seeds), jobs=args.jobs, scheduler=args.scheduler
+            run_one, seeds, [tmp] * n, [None] * n, [args.no_outliers] * n,
+            jobs=args.jobs, scheduler=args.scheduler,
         )
     took = time.perf_counter() - t0
     if args.missions_out:
@@ -426,7 +446,9 @@ def main() -> int:
                 for name, sc in (("default", r.default), ("thesis", r.thesis)):
                     row[name] = asdict(sc) if sc is not None else None
                 fh.write(json.dumps(row) + "\n")
-    cmd = f"`python -m bench.robustness --missions {args.missions}`"
+    cmd = f"`python -m bench.robustness --missions {args.missions}" + (
+        f" --only {args.only}" if args.only else "") + (
+        " --no-outliers`" if args.no_outliers else "`")
     where = f"Dask at {args.scheduler}" if args.scheduler else f"{args.jobs} worker processes"
     pace = (
         f"Ran in {took / 60:.1f} min on {where} ({took / len(seeds):.2f} s a mission; "
@@ -435,8 +457,8 @@ def main() -> int:
     report(
         f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
         args.write,
-        "bench-robustness",
-        "Robustness",
+        "bench-robustness-no-outliers" if args.no_outliers else "bench-robustness",
+        "Robustness without outliers" if args.no_outliers else "Robustness",
     )
     return 0
 
