@@ -96,7 +96,7 @@ def _ms(x: float | None) -> float | None:
 class RecentTimes:
     """The last ``n`` of a stream of times, also kept in order of size as they come, so
     that a quantile is read once a second without sorting thousands of them each time
-    (four sorts of 6,000 a second were a tenth of the daemon's CPU)."""
+    (four sorts of 6,000 took about 3 ms of every second, by ``timeit``)."""
 
     __slots__ = ("_arrived", "_sorted")
 
