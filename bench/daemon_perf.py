@@ -1,7 +1,8 @@
 """``make bench-daemon``: the daemon against the emulators for ten minutes.
 
 Runs ``navd-hil demo`` and ``navd run`` as on the bench, then reads the daemon's
-CPU time and peak RSS from /proc and its own health (tick lateness over the last
+CPU time, its main thread's wake-ups (voluntary context switches) and peak RSS from
+/proc, and its own health (tick lateness over the last
 6,000 ticks, the time from a tick's deadline to the estimate handed to zenoh).
 """
 
@@ -40,6 +41,14 @@ def _threads_cpu_s(pid: int) -> tuple[float, float]:
         else:
             other += cpu
     return main, other
+
+
+def _wakeups(pid: int) -> int:
+    """How many times the main thread (the event loop) has gone to sleep and woken."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("voluntary_ctxt_switches:"):
+            return int(line.split()[1])
+    return 0
 
 
 def _profile_rows(path: Path, n: int = 12) -> list[str]:
@@ -86,10 +95,12 @@ def main() -> int:
         time.sleep(5.0)
         cpu0, t0 = _cpu_s(navd.pid), time.monotonic()
         main0, other0 = _threads_cpu_s(navd.pid)
+        woke0 = _wakeups(navd.pid)
         time.sleep(args.seconds)
         span = time.monotonic() - t0
         cpu = (_cpu_s(navd.pid) - cpu0) / span * 100.0
         main1, other1 = _threads_cpu_s(navd.pid)
+        woke = (_wakeups(navd.pid) - woke0) / span
         cpu_main, cpu_other = (main1 - main0) / span * 100, (other1 - other0) / span * 100
         hwm = _hwm_mb(navd.pid)
         v.stop()
@@ -114,6 +125,7 @@ def main() -> int:
             f"| CPU, % of one core | {cpu:.2f} | < 1.5 |",
             f"| of which the Python thread / zenoh's and other threads | {cpu_main:.2f} / "
             f"{cpu_other:.2f} | |",
+            f"| event-loop wake-ups a second | {woke:.0f} | |",
             f"| peak RSS (MB) | {hwm:.0f} | |",
             f"| tick lateness p50 / p99 / max (ms) | {tl['p50']} / {tl['p99']} / {tl['max']} "
             "| p99 < 5 |",

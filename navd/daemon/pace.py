@@ -2,9 +2,9 @@
 
 Waking the process costs more than most of what a wake-up then does: a bare asyncio
 loop with a 50 Hz read timer and five tasks sleeping at 10 and 4 Hz, each on its own
-phase, took 0.84 to 0.96 % of a core on the bench machine, and 0.45 % with a 50 ms
-read timer and the tasks on its grid (BENCHMARKS.md, "Daemon").  So every periodic
-task sleeps to the next multiple of its period, as the serial reader
+phase, took 0.85 % of a core on the bench machine, and 0.45 % with a 50 ms read timer
+and the tasks on its grid (``python -m bench.loop_wakeups``; BENCHMARKS.md, "Daemon").
+So every periodic task sleeps to the next multiple of its period, as the serial reader
 (navd/drivers/transport.py) and the filter's ticker do: a poll at 10 Hz, the modem's
 keeper, the log's flush and the health once a second all fall on instants the reader
 wakes at anyway, and the process wakes once for all that is due.  A task that falls

@@ -6,8 +6,9 @@
  *
  * Only the ordinary step is taken here: a move short enough for one midpoint step
  * along the geodesic (navd.geodesy.destination, whose limit and ellipsoid the caller
- * passes in) with finite inputs.  Anything else returns None having changed nothing, and the caller takes
- * the reference step, as does an array that is not a C-contiguous float64 one.  The
+ * passes in) with finite inputs.  Anything else returns None having changed nothing,
+ * and the caller takes the reference step, as does an array that is not a
+ * C-contiguous float64 one.  The
  * arrays are borrowed through the buffer protocol, so no numpy headers are needed to
  * build this.
  */
