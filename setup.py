@@ -1,5 +1,5 @@
-"""The one compiled part of navd, optional: without a C compiler it installs without
-it and navd/filter/ekf_step.py takes every step in Python (the same arithmetic)."""
+"""navd's compiled parts, optional: without a C compiler it installs without them, and
+navd/filter/ekf_step.py and navd/filter/relinearise.py do the same arithmetic in Python."""
 
 from setuptools import Extension, setup
 
@@ -11,6 +11,12 @@ setup(
             # IEEE arithmetic as Python does it: no fused multiply-adds (aarch64 has them)
             extra_compile_args=["-ffp-contract=off"],
             optional=True,
-        )
+        ),
+        Extension(
+            "navd.filter._window",
+            sources=["navd/filter/_window.c"],
+            extra_compile_args=["-ffp-contract=off"],
+            optional=True,
+        ),
     ]
 )

@@ -44,7 +44,12 @@ class RangeEKF(RangeFusion):
     def with_noise(self, noise: NoiseConfig) -> RangeEKF:
         """A fresh filter with this one's gates and site limit, and another noise model."""
         return RangeEKF(
-            noise, self.gate_chi2, self.gate_chi2_long, self.reacquire_after, self.max_current
+            noise,
+            self.gate_chi2,
+            self.gate_chi2_long,
+            self.reacquire_after,
+            self.max_current,
+            self.relinearise_ranges,
         )
 
     # -- initialisation and GPS -------------------------------------------------------
@@ -73,6 +78,7 @@ class RangeEKF(RangeFusion):
         self.x, self.P = x.copy(), P.copy()
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
+        self._forget_ranges()
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

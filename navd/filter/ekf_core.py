@@ -5,9 +5,9 @@ its error covariance in metres, and the algebra between them.
     error   dx = (dn, de, dc_n, dc_e, db, ds, do_n, do_e)
              metres, m/s, radians, scale, metres
 
-Its parts, as AP_NavEKF3 splits its core: this state; range fusion and
-re-acquisition (navd/filter/ekf_ranges.py); prediction, GPS fusion and the outputs
-(navd/filter/ekf.py).
+Its parts, as AP_NavEKF3 splits its core: this state; range fusion, re-acquisition
+and the relinearised window (navd/filter/ekf_ranges.py, navd/filter/relinearise.py);
+prediction, GPS fusion and the outputs (navd/filter/ekf.py).
 """
 
 from __future__ import annotations

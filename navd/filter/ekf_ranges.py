@@ -15,6 +15,10 @@ re-acquisition from consistent evidence.
   correction most of them agree on.  Only such a correction is applied, with the
   fit's covariance; a burst of mutually inconsistent long replies finds none and
   changes nothing.  The current it learns is bounded by ``max_current_mps``.
+* Relinearisation: after each accepted range, the last ``relinearise_ranges`` of them
+  are solved again together, each linearised where the later ones put the vehicle
+  (navd/filter/relinearise.py), since one beacon says nothing across its line of sight
+  and the estimate that chose each range's direction may have been off across it.
 * The beacon's reported-position error: the first beacon heard has its own states
   (``o_n, o_e``); others add their position error to the range variance.
 """
@@ -27,16 +31,20 @@ from collections import deque
 import numpy as np
 
 from navd import geodesy
-from navd.filter import reacquire
+from navd.filter import reacquire, relinearise
 from navd.filter.common import GateDecision, RangeMeas, joseph_update
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
+from navd.filter.relinearise import LineOfSight
 from navd.settings import NoiseConfig
 
 _WINDOW_RANGES = 12
 _HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
 _MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
 _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
+_RELIN_RANGES = 30  # accepted ranges the relinearisation solves together
+_RELIN_PASSES = 3
+_RELIN_TOL_M = 0.5  # linearisation points that move less than this are where they belong
 
 
 class RangeFusion(EkfCore):
@@ -47,7 +55,10 @@ class RangeFusion(EkfCore):
         gate_chi2_long: float,
         reacquire_after: int,
         max_current_mps: float = 2.0,
+        relinearise_ranges: int = _RELIN_RANGES,
     ) -> None:
+        """``relinearise_ranges``: the accepted ranges solved again together after each
+        (1: none, the plain EKF)."""
         super().__init__(noise, max_current_mps)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
@@ -62,6 +73,10 @@ class RangeFusion(EkfCore):
         # NIS of the last accepted ranges, and the 99 % bound of their sum (chi-square)
         self._nis: deque[float] = deque(maxlen=2 * reacquire_after)
         self._nis_limit = chi2_quantile(0.99, 2 * reacquire_after)
+        # the accepted ranges the relinearisation looks back over, as they were fused
+        self.relinearise_ranges = max(1, relinearise_ranges)
+        self._steps: deque[relinearise.Step] = deque(maxlen=self.relinearise_ranges)
+        self.relinearised = 0  # ranges after which the window was solved again
 
     def _forget_ranges(self) -> None:
         """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
@@ -69,6 +84,7 @@ class RangeFusion(EkfCore):
         self._recent.clear()
         self._nis.clear()
         self._window.clear()
+        self._steps.clear()
 
     def predicted_range(self, m: RangeMeas) -> tuple[float, np.ndarray]:
         """Mean of the out and back legs of the round trip, and its Jacobian.
@@ -77,6 +93,10 @@ class RangeFusion(EkfCore):
         location line): both ends are found by undoing the dead-reckoned motion
         since them, so a late range is fused at its own time.
         """
+        r, H, _ = self._line_of_sight(m)
+        return r, H
+
+    def _line_of_sight(self, m: RangeMeas) -> tuple[float, np.ndarray, LineOfSight]:
         lat, lon = float(self.x[0]), float(self.x[1])
         dn_p, de_p = self.track.displacement_since(m.t_ping)
         dn_b, de_b = self.track.displacement_since(m.t)
@@ -107,7 +127,8 @@ class RangeFusion(EkfCore):
             # moving the beacon moves the range like moving the vehicle the other way
             H[6] = -H[0]
             H[7] = -H[1]
-        return 0.5 * (r_out + r_back), H
+        sight = LineOfSight(r_out, gn_o, ge_o, r_back, gn_b, ge_b, lag_o, lag_b, tracked)
+        return 0.5 * (r_out + r_back), H, sight
 
     def _track_beacon(self, m: RangeMeas) -> None:
         """Adopt the first beacon heard as the one whose position error is estimated."""
@@ -121,7 +142,8 @@ class RangeFusion(EkfCore):
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
-        expected, H = self.predicted_range(m)
+        x_prior, P_prior = self.x.copy(), self.P.copy()
+        expected, H, sight = self._line_of_sight(m)
         r_var = m.std_m**2
         if m.beacon != self.primary:
             # another beacon's position error is not a state: count it as range noise
@@ -162,9 +184,69 @@ class RangeFusion(EkfCore):
         K, self.P, _ = joseph_update(self.P, H, r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
+        self._relinearise(sight, m, r_var, x_prior, P_prior)
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return GateDecision(True, residual, gate_m, "ok")
+
+    def _relinearise(
+        self,
+        sight: LineOfSight,
+        m: RangeMeas,
+        r_var: float,
+        x_prior: np.ndarray,
+        P_prior: np.ndarray,
+    ) -> None:
+        """Add the range just fused to the window and solve the window again
+        (navd/filter/relinearise.py)."""
+        steps = self._steps
+        while steps and self.t - steps[0].t > WINDOW_S:
+            steps.popleft()
+        phi = np.eye(N_STATES)
+        qd = np.zeros((N_STATES, N_STATES))
+        if steps:
+            prev = steps[-1]
+            dt = self.t - prev.t
+            d = self.state_diff(x_prior, prev.x_post)
+            cn, ce, _, scale = prev.x_post[2:6].tolist()
+            if not scale > 0.1:
+                steps.clear()
+                return
+            # the filter's transitions multiply to the identity plus their sums: the
+            # motion through the water (total less the current's) and its derivatives
+            wn, we = float(d[0]) - cn * dt, float(d[1]) - ce * dt
+            phi[0, 2] = phi[1, 3] = dt
+            phi[0, 4], phi[1, 4] = -we, wn
+            phi[0, 5], phi[1, 5] = wn / scale, we / scale
+            if self.primary is not None:
+                phi[6, 6] = phi[7, 7] = math.exp(-dt / self._off_tau)
+            qd = relinearise.transition_noise(phi, prev.P_post, P_prior)
+        steps.append(
+            relinearise.Step(
+                self.t,
+                P_prior,
+                self.state_diff(self.x, x_prior),
+                self.P.copy(),
+                phi,
+                qd,
+                sight,
+                m.range_m,
+                r_var,
+                x_prior,
+                self.x.copy(),
+            )
+        )
+        solved = relinearise.solve(steps, _RELIN_PASSES, _RELIN_TOL_M)
+        if solved is None:
+            return
+        k, self.P = solved
+        self.x = self.state_apply(x_prior, k, m.vehicle_hd)
+        self._limit_current()
+        last = steps[-1]
+        last.x_post = self.x.copy()
+        last.k = self.state_diff(self.x, x_prior)
+        last.P_post = self.P.copy()
+        self.relinearised += 1
 
     def _rays(self) -> list[reacquire.Ray]:
         """The recent ranges seen from the present estimate, for the re-acquisition fit."""
