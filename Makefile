@@ -20,7 +20,7 @@ fuzz: $(STAMP)
 	for i in 1 2 3 4 5 6 7 8 9 10; do \
 	  NAVD_HYPOTHESIS=explore $(BIN)/pytest -q -p no:cacheprovider \
 	    tests/test_fuzz.py tests/test_codecs.py tests/test_geodesy.py tests/test_hostile_files.py \
-	    tests/test_real_receivers.py tests/test_ekf_step.py || exit 1; \
+	    tests/test_real_receivers.py tests/test_ekf_step.py tests/test_relinearise.py || exit 1; \
 	done
 
 test: $(STAMP)

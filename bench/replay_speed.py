@@ -23,7 +23,7 @@ from typing import Any, cast
 from bench.common import mode_config, report
 from navd import files
 from navd.analysis.score import position_rms, score
-from navd.filter import ekf_step
+from navd.filter import ekf_step, relinearise
 from navd.formats import jsonlines
 from navd.formats.outputs import read_outputs
 from navd.formats.truth import read_truth
@@ -67,7 +67,8 @@ _HWM = (
 
 def _run(cmd: list[str], pure: bool = False) -> tuple[float, float]:
     """Wall time (s) and peak RSS (MB) of ``python -m MODULE ARGS`` or ``python FILE ARGS``
-    (``pure``: with navd's compiled prediction step kept out, navd/filter/ekf_step.py)."""
+    (``pure``: with navd's compiled parts kept out, navd/filter/ekf_step.py and
+    navd/filter/relinearise.py)."""
     target = cmd[2:] if cmd[1] == "-m" else cmd[1:]
     env = {**os.environ, "NAVD_PURE_PYTHON": "1"} if pure else None
     t0 = time.perf_counter()
@@ -101,7 +102,7 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
     runs_of = (("default", False, False), ("default", False, True), ("thesis", False, False),
                ("default", True, False))
     for mode, smooth, pure in runs_of:
-        if pure and not ekf_step.COMPILED:
+        if pure and not (ekf_step.COMPILED or relinearise.COMPILED):
             continue  # the row above took the reference step already
         best = min(_run(_replay_cmd(d, mode, smooth), pure)[0] for _ in range(runs))
         out = read_outputs(d / "out.jsonl")
@@ -109,7 +110,7 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
         ranges = sum(1 for o in out if isinstance(o, RangeDecision))
         ticks = ticks or steps
         label = mode + (" + RTS smoother" if smooth else "") + (
-            ", Python step (`NAVD_PURE_PYTHON=1`)" if pure else "")
+            ", Python step and solve (`NAVD_PURE_PYTHON=1`)" if pure else "")
         rows.append(
             f"| {label} | {n_lines} | {steps} | {ranges} | {best:.2f} | "
             f"{out[-1].t / best:,.0f} | {1e6 * best / steps:.0f} | {best / floor:.1f} "
@@ -121,8 +122,9 @@ def speed(d: Path, runs: int, sim_s: float) -> list[str]:
         "orjson, an 8-state EKF over the same steps and updates, the same number of "
         f"lines written) in the same run: **{floor:.2f} s**, RMS {floor_rms:.1f} m against "
         "the truth (a floor that navigates, not a rival). Simulating the mission took "
-        f"{sim_s:.2f} s. The default mode's prediction step is "
-        + ("compiled (navd/filter/_ekf_step.c)" if ekf_step.COMPILED else
+        f"{sim_s:.2f} s. The default mode's prediction step and window solve are "
+        + ("compiled (navd/filter/_ekf_step.c, navd/filter/_window.c)"
+           if ekf_step.COMPILED and relinearise.COMPILED else
            "Python's (no C compiler when navd was installed)")
         + ", but where the row says otherwise.",
         "",

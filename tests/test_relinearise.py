@@ -4,6 +4,10 @@ linear, closer than the EKF where it is not, and total."""
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -156,8 +160,8 @@ def _windows(seed: int) -> list[list[relinearise.Step]]:
 
 
 def test_the_window_model_is_the_filters_range_where_it_fused_it() -> None:
-    """At the prior, the flat model is the exact range and Jacobian; its Jacobian is its
-    own derivative elsewhere."""
+    """At the prior, the plane's model is the exact range and Jacobian, near it the
+    geodesic range, and its Jacobian is its own derivative."""
     f = RangeEKF(NoiseConfig(), 9.0, 4.0, 3)
     f.initialise(LAT, LON, 5.0, 0.0)
     for k in range(1, 201):
@@ -169,6 +173,15 @@ def test_the_window_model_is_the_filters_range_where_it_fused_it() -> None:
     r0, H0 = relinearise.window_range(np.zeros(8), sight)
     assert math.isclose(r0, exact, rel_tol=1e-12)
     assert np.allclose(H0, H_exact, atol=1e-12)
+    # moved 150 m, the plane's range is the geodesic one within a millimetre
+    x0 = f.x.copy()
+    for dn, de in ((150.0, 0.0), (0.0, 150.0), (-100.0, 100.0)):
+        d = np.zeros(8)
+        d[0], d[1] = dn, de
+        f.x = f.state_apply(x0, d, -3.0)
+        exact, _ = f.predicted_range(m)
+        assert abs(relinearise.window_range(d, sight)[0] - exact) < 1e-3
+    f.x = x0
     d = np.array([12.0, -7.0, 0.05, -0.03, 0.0, 0.0, 1.5, -0.5])
     _, H = relinearise.window_range(d, sight)
     for j in (0, 1, 2, 3, 6, 7):
@@ -209,3 +222,12 @@ def test_the_compiled_solve_takes_any_window_without_raising(
     if solved is not None:
         d, P = solved
         assert np.all(np.isfinite(d)) and np.all(np.isfinite(P))
+
+
+def test_the_compiled_solve_is_built_where_a_c_compiler_is_and_can_be_kept_out() -> None:
+    if not os.environ.get("NAVD_PURE_PYTHON") and shutil.which("cc") is not None:
+        assert relinearise.COMPILED
+    code = "from navd.filter import relinearise; print(relinearise.COMPILED)"
+    env = {**os.environ, "NAVD_PURE_PYTHON": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.strip() == "False", out.stderr

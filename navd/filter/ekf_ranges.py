@@ -42,7 +42,7 @@ _WINDOW_RANGES = 12
 _HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
 _MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
 _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
-_RELIN_RANGES = 30  # accepted ranges the relinearisation solves together
+_RELIN_RANGES = 30  # accepted ranges the relinearisation solves together (within WINDOW_S)
 _RELIN_PASSES = 3
 _RELIN_TOL_M = 0.5  # linearisation points that move less than this are where they belong
 

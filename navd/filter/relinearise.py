@@ -56,13 +56,13 @@ class LineOfSight(NamedTuple):
 
 
 def window_range(d: np.ndarray, g: LineOfSight) -> tuple[float, np.ndarray]:
-    """The round trip's range and Jacobian from the state ``d`` (error state about the
-    prior it was fused at), for the relinearised window (navd/filter/relinearise.py).
+    """The default mode's round trip (navd/filter/ekf_ranges.py): its range and Jacobian
+    from the state ``d``, the error state about the prior it was fused at.
 
-    Each leg is moved in the plane of the prior's north and east: over the window's few
-    hundred metres the geodesic and the plane differ by millimetres in a leg's change,
-    and this costs no geodesic in the window's passes.  At ``d = 0`` it is the exact
-    range and Jacobian the filter used.
+    Each leg is moved in the plane of the prior's north and east: for the window's moves
+    of a few hundred metres the plane's range is the geodesic one within a millimetre
+    (tests/test_relinearise.py), and it costs no geodesic in the window's passes.  At
+    ``d = 0`` it is the exact range and Jacobian the filter used.
     """
     dn, de = float(d[0]), float(d[1])
     if g.tracked:
@@ -132,6 +132,8 @@ def _load_compiled() -> Callable[..., int | None] | None:
 
 
 _compiled = _load_compiled()
+#: whether the compiled solve is in use (says so in the replay's speed bench)
+COMPILED = _compiled is not None
 _MAX_COMPILED_STEPS = 64  # navd/filter/_window.c's MAX_STEPS
 
 
