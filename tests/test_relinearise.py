@@ -95,6 +95,7 @@ def _range_mission(seed: int, window: int) -> tuple[float, bool]:
             f.range_update(RangeMeas(t, t, z, "b", b_lat, b_lon, -1.0, -1.0, 2.0))
     err = np.array(geodesy.nearby_offset(float(f.x[0]), float(f.x[1]), true_lat, true_lon))
     nees = float(err @ np.linalg.solve(f.P[:2, :2], err))
+    assert (f.relinearised > 0) == (window > 1)
     return math.hypot(*err), nees < 5.991  # chi-square, 2 degrees of freedom, 95 %
 
 
