@@ -7,7 +7,8 @@ STAMP := $(VENV)/.installed
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
 	bench-robustness bench-soak bench-calibration bench-advisory bench-files check-armhf check-arm64 clean
 
-$(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c navd/filter/_window.c
+$(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c navd/filter/_window.c \
+		navd/filter/_buffer.h
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'

@@ -8,6 +8,7 @@ setup(
         Extension(
             "navd.filter._ekf_step",
             sources=["navd/filter/_ekf_step.c"],
+            depends=["navd/filter/_buffer.h"],
             # IEEE arithmetic as Python does it: no fused multiply-adds (aarch64 has them)
             extra_compile_args=["-ffp-contract=off"],
             optional=True,
@@ -15,6 +16,7 @@ setup(
         Extension(
             "navd.filter._window",
             sources=["navd/filter/_window.c"],
+            depends=["navd/filter/_buffer.h"],
             extra_compile_args=["-ffp-contract=off"],
             optional=True,
         ),

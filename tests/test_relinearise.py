@@ -115,27 +115,6 @@ def test_relinearising_the_window_is_closer_and_honest_where_the_ekf_is_not() ->
 _num = st.floats(allow_nan=True, allow_infinity=True, width=64)
 
 
-@settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(_num, _num, _num, _num), min_size=0, max_size=6), _num)
-def test_any_window_is_solved_or_refused_without_raising(
-    rows: list[tuple[float, float, float, float]], scale: float
-) -> None:
-    steps = []
-    for a, b, z, r_var in rows:
-        x = np.array([a, b, 0.0, 0.0])
-        with np.errstate(all="ignore"):
-            P = np.eye(4) * scale
-        steps.append(
-            relinearise.Step(
-                0.0, P, x, P, np.eye(4), P, (np.array([a, b, 1.0, 0.0]), x), z, r_var, x, x
-            )
-        )
-    solved = relinearise.smooth(steps, _linear, 3, 0.5)
-    if solved is not None:
-        x, P = solved
-        assert np.all(np.isfinite(x)) and np.all(np.isfinite(P))
-
-
 def _windows(seed: int) -> list[list[relinearise.Step]]:
     """Every window a filter solved on a run past a beacon whose position error it tracks."""
     rng = np.random.default_rng(seed)
@@ -193,7 +172,7 @@ def test_the_window_model_is_the_filters_range_where_it_fused_it() -> None:
         assert H[j] == pytest.approx((plus - minus) / (2 * e[j]), abs=1e-6)
 
 
-@pytest.mark.skipif(relinearise._compiled is None, reason="built without a C compiler")
+@pytest.mark.skipif(not relinearise.COMPILED, reason="built without a C compiler")
 def test_the_compiled_window_solve_does_the_references_arithmetic() -> None:
     windows = _windows(5)
     assert len(windows) > 15
@@ -206,12 +185,12 @@ def test_the_compiled_window_solve_does_the_references_arithmetic() -> None:
             assert np.allclose(compiled[1], reference[1], rtol=1e-9, atol=1e-9)
 
 
-@pytest.mark.skipif(relinearise._compiled is None, reason="built without a C compiler")
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(_num, _num, _num, _num), min_size=2, max_size=6), _num)
-def test_the_compiled_solve_takes_any_window_without_raising(
+@given(st.lists(st.tuples(_num, _num, _num, _num), min_size=0, max_size=6), _num)
+def test_any_window_is_solved_or_refused_without_raising(
     rows: list[tuple[float, float, float, float]], scale: float
 ) -> None:
+    """Both the reference and the solve the filter calls (compiled where it can be)."""
     steps = []
     for a, b, z, r_var in rows:
         with np.errstate(all="ignore"):
@@ -219,10 +198,13 @@ def test_the_compiled_solve_takes_any_window_without_raising(
         sight = relinearise.LineOfSight(a, 0.6, -0.8, b, 0.6, 0.8, 1.0, 0.5, True)
         steps.append(relinearise.Step(0.0, P, np.zeros(8), P, np.eye(8), P, sight, z, r_var,
                                       np.zeros(8), np.zeros(8)))
-    solved = relinearise.solve(steps, 3, 0.5)
-    if solved is not None:
-        d, P = solved
-        assert np.all(np.isfinite(d)) and np.all(np.isfinite(P))
+    for solved in (
+        relinearise.smooth(steps, relinearise.window_range, 3, 0.5),
+        relinearise.solve(steps, 3, 0.5),
+    ):
+        if solved is not None:
+            d, P = solved
+            assert np.all(np.isfinite(d)) and np.all(np.isfinite(P))
 
 
 def test_the_compiled_solve_is_built_where_a_c_compiler_is_and_can_be_kept_out() -> None:

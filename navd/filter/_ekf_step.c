@@ -16,24 +16,9 @@
 #include <Python.h>
 #include <math.h>
 
-#define N 8
+#include "_buffer.h"
 
-/* The array as a C buffer of n float64, or 0 (no exception set) if it is not one: a
- * covariance that is a view, or of another type, takes the reference step. */
-static int
-borrow(PyObject *obj, Py_buffer *view, Py_ssize_t n)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        return 0;
-    }
-    if (view->itemsize != sizeof(double) || view->len != n * (Py_ssize_t)sizeof(double) ||
-        view->format == NULL || strcmp(view->format, "d") != 0) {
-        PyBuffer_Release(view);
-        return 0;
-    }
-    return 1;
-}
+#define N 8
 
 /* Python's float modulo: the result takes the divisor's sign */
 static double
@@ -70,8 +55,8 @@ predict(PyObject *self, PyObject *args)
         return NULL;
 
     Py_buffer bx, bP, bF, bQ;
-    int have_x = borrow(ox, &bx, N), have_P = have_x && borrow(oP, &bP, N * N);
-    int have_F = have_P && borrow(oF, &bF, N * N), have_Q = have_F && borrow(oQ, &bQ, N * N);
+    int have_x = borrow(ox, &bx, N, 1), have_P = have_x && borrow(oP, &bP, N * N, 1);
+    int have_F = have_P && borrow(oF, &bF, N * N, 1), have_Q = have_F && borrow(oQ, &bQ, N * N, 1);
     if (!have_Q) {
         if (have_F)
             PyBuffer_Release(&bF);

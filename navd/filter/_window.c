@@ -4,35 +4,22 @@
  * solves its window after every accepted range, and in numpy the passes' 8x8 products
  * cost more in calls than in arithmetic.
  *
- * The window comes packed in float64 arrays (relinearise.py's _pack) and is borrowed
- * through the buffer protocol, so no numpy headers are needed to build this.  An array
- * of another shape or type returns None, and the caller solves with the reference.
+ * The window comes packed in float64 arrays (relinearise.solve packs them) and is
+ * borrowed through the buffer protocol (_buffer.h).  An array of another shape or type
+ * returns None, as a window that breaks down does; windows longer than MAX_STEPS the
+ * caller solves with the reference.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
 #include <string.h>
 
+#include "_buffer.h"
+
 #define N 8
 #define NN (N * N)
 #define GEO 9 /* r_ping, n_ping, e_ping, r_reply, n_reply, e_reply, lag_ping, lag_reply, tracked */
 #define MAX_STEPS 64
-
-static int
-borrow(PyObject *obj, Py_buffer *view, Py_ssize_t n, int writable)
-{
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, view, flags) < 0) {
-        PyErr_Clear();
-        return 0;
-    }
-    if (view->itemsize != sizeof(double) || view->len != n * (Py_ssize_t)sizeof(double) ||
-        view->format == NULL || strcmp(view->format, "d") != 0) {
-        PyBuffer_Release(view);
-        return 0;
-    }
-    return 1;
-}
 
 /* c = a b (8x8) */
 static void
@@ -331,5 +318,8 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC
 PyInit__window(void)
 {
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m != NULL && PyModule_AddIntConstant(m, "MAX_STEPS", MAX_STEPS) < 0)
+        Py_CLEAR(m);
+    return m;
 }

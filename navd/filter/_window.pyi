@@ -1,6 +1,8 @@
 # The compiled window solve (navd/filter/_window.c); navd/filter/relinearise.py says what it does.
 import numpy as np
 
+MAX_STEPS: int
+
 def solve(
     n: int,
     P0: np.ndarray,

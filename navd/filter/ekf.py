@@ -71,7 +71,7 @@ class RangeEKF(RangeFusion):
         self.initialised = True
         self.t = t
         self.t_anchor = t
-        self._steps.clear()  # a window from before would not chain to this state
+        self._forget_ranges()  # ranges from before would not chain to this state
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:

@@ -120,21 +120,21 @@ def transition_noise(phi: np.ndarray, P_post_prev: np.ndarray, P_prior: np.ndarr
     return q
 
 
-def _load_compiled() -> Callable[..., int | None] | None:
+def _load_compiled() -> tuple[Callable[..., int | None], int] | None:
     if os.environ.get("NAVD_PURE_PYTHON"):
         return None
     try:
-        from navd.filter._window import solve as compiled
+        from navd.filter import _window
     except ImportError:
         return None  # built without a C compiler: the reference solves every window
-    fn: Callable[..., int | None] = compiled
-    return fn
+    fn: Callable[..., int | None] = _window.solve
+    return fn, int(_window.MAX_STEPS)
 
 
-_compiled = _load_compiled()
+_loaded = _load_compiled()
+_compiled, _MAX_COMPILED_STEPS = _loaded if _loaded is not None else (None, 0)
 #: whether the compiled solve is in use (says so in the replay's speed bench)
 COMPILED = _compiled is not None
-_MAX_COMPILED_STEPS = 64  # navd/filter/_window.c's MAX_STEPS
 
 
 def solve(
