@@ -43,10 +43,9 @@ from navd.settings import NoiseConfig
 # priors are 3 to 10 times too small), capped at what a small AUV's sensors and a
 # coastal site make plausible.  Its random walks are the config's: with one beacon, a
 # wider current walk makes the filter itself inconsistent, and the ranges then give the
-# sharper config belief the weight (on tests/test_bank.py's eight missions with a current
-# ten times its prior, a walk six times wider left the truth inside its own 99 % ellipse
-# on 0.73 of ranges against 0.83, and inside the bank's on 0.76 against 0.92;
-# BENCHMARKS.md, "The uncalibrated belief's current walk").
+# sharper config belief the weight, so the published ellipse loses the truth where the
+# config's priors are wrong (measured in BENCHMARKS.md, "The uncalibrated belief's
+# current walk").
 _WIDEN = 10.0
 _MAX_CURRENT_STD_FRACTION = 0.5  # of max_current_mps, per axis
 _MAX_BIAS_STD_DEG = 15.0
