@@ -55,6 +55,8 @@ class Estimate:
     beacon_offset_e: float | None = _optional()
     # default mode: the weight the ranges give to "the config's calibration priors are wrong"
     calibration_doubt: float | None = _optional()
+    # default mode: true once those priors are refuted and the uncalibrated belief is followed
+    calibration_refuted: bool | None = _optional()
     heading_deg: float = 0.0  # true heading and water speed the filter used
     speed_mps: float = 0.0
     dr_lat: float | None = _optional()  # dead reckoning since the last fix

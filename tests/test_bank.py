@@ -1,4 +1,5 @@
-"""The calibration bank: honest when the config's priors are wrong, the config's mean always."""
+"""The calibration bank: honest when the config's priors are wrong, and the config's mean
+until the config filter's own estimate refutes them."""
 
 from __future__ import annotations
 
@@ -129,3 +130,36 @@ def test_the_estimate_says_how_much_the_ranges_doubt_the_calibration() -> None:
         doubt.append(c.calibration_doubt)
     assert sum(doubt[:3]) / 3 > 0.65
     assert max(doubt[3:]) < 0.55
+
+
+def test_refuted_priors_publish_the_uncalibrated_belief() -> None:
+    """The config says 0.04 m/s; the water runs at 0.45 m/s.  Re-acquisitions drag the
+    config filter's current far past its priors; from then on the bank publishes the
+    uncalibrated filter's estimate, which holds the water's current, and says so."""
+    for seed in range(1, 9):
+        bank, _ = _run(NoiseConfig(current_init_std_mps=0.04), (0.25, -0.37), seed)
+        assert bank.refuted
+        est, u = bank.estimate(), bank.uncal.estimate()
+        assert (est.lat, est.lon, est.current_n, est.current_e) == (u.lat, u.lon, u.current_n,
+                                                                    u.current_e)
+        assert math.hypot(est.current_n - 0.25, est.current_e + 0.37) < 0.1
+        c = bank.corrections()
+        assert c is not None and c.calibration_refuted is True
+        assert bank.history is bank.uncal.history
+
+
+def test_a_right_config_is_never_refuted() -> None:
+    for seed in range(1, 5):
+        bank, _ = _run(NoiseConfig(), (0.1, 0.05), seed, minutes=20.0, outliers=0.3)
+        assert not bank.refuted
+        c = bank.corrections()
+        assert c is not None and c.calibration_refuted is False
+
+
+def test_a_restored_checkpoint_starts_unrefuted() -> None:
+    bank, _ = _run(NoiseConfig(current_init_std_mps=0.04), (0.25, -0.37), 1)
+    assert bank.refuted
+    x, P = bank.x.copy(), bank.P.copy()
+    bank.restore(x, P, 25.0)
+    assert not bank.refuted
+    assert np.allclose(bank.config.x, x)

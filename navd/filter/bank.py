@@ -22,8 +22,19 @@ published ellipse holds where the other belief puts the vehicle, and integrity
 degrades with it.  The mean is not moved to the mixture's: with one beacon a wrong
 filter still predicts the next range well while it sits on the same circle, so a
 few ranges can give a diverged ``uncal`` nearly all the weight, and following it
-made the drawn missions worse (BENCHMARKS.md).  The smoother and the checkpoint
-follow the config filter.
+made the drawn missions worse (BENCHMARKS.md).
+
+Until the config's priors are refuted.  The config filter's own calibration is then
+further from them than they allow: its current, heading bias and speed scale, against
+the priors with the random walks since the start, past the 99.9 % quantile of
+chi-square on their four degrees of freedom.  Such a filter got there by re-acquisitions
+that threw its covariance away, not by the ranges weighing against its priors, so the
+weight of the ranges says nothing of it, and a dragged filter can sit a kilometre off
+on the wrong side of its beacon while still predicting its ranges.  From then on the
+bank follows the uncalibrated filter (its mean, its gate decisions, its history for the
+smoother, its state for the checkpoint), with the covariance of the mixture about that
+mean, and says so (``calibration_refuted``).  A right config's own estimate stays well
+inside its priors, since its posterior is narrower than them.
 """
 
 from __future__ import annotations
@@ -34,8 +45,9 @@ from dataclasses import replace
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Corrections, GateDecision, RangeMeas, StateEstimate
+from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
 from navd.filter.ekf import RangeEKF
+from navd.filter.integrity import chi2_quantile
 from navd.filter.lsfix import Fix
 from navd.settings import NoiseConfig
 
@@ -60,6 +72,9 @@ _OUTLIER_SPREAD_M = 300.0
 # evidence takes to build.
 _SWITCH = 0.05
 _PRIOR = 0.5  # before any range, neither belief is the likelier
+# The config's priors are refuted past this distance of the config filter's calibration
+# from them (chi-square, 4 degrees of freedom: current north and east, bias, scale).
+_REFUTED_CHI2 = chi2_quantile(0.999, 4)
 
 
 def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
@@ -99,16 +114,35 @@ class CalibrationBank:
         self.config = config
         self.uncal = config.with_noise(uncalibrated_noise(config.noise, config.max_current))
         self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
-        self.history = self.config.history
+        self.refuted = False  # the config's priors, by the config filter's own estimate
+        self._t0 = 0.0  # when the priors were set (the walks grow them from then)
 
-    # what the smoother, the checkpoint and the navigator's gates see: the config filter
+    @property
+    def followed(self) -> RangeEKF:
+        """The filter whose mean is published: the config's until its priors are refuted."""
+        return self.uncal if self.refuted else self.config
+
+    # what the smoother, the checkpoint and the navigator's gates see: the followed filter
     @property
     def x(self) -> np.ndarray:
-        return self.config.x
+        return self.followed.x
 
     @property
     def P(self) -> np.ndarray:
-        return self.config.P
+        return self.followed.P
+
+    @property
+    def history(self) -> History:
+        return self.followed.history
+
+    def keep_history(self) -> None:
+        # both, since the one followed at the end of the mission is the one smoothed
+        self.config.keep_history()
+        self.uncal.keep_history()
+
+    def close_history(self) -> None:
+        self.config.close_history()
+        self.uncal.close_history()
 
     @property
     def initialised(self) -> bool:
@@ -116,12 +150,14 @@ class CalibrationBank:
 
     @property
     def last_nis(self) -> float:
-        return self.config.last_nis
+        return self.followed.last_nis
 
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         self.config.initialise(lat, lon, std_m, t)
         self.uncal.initialise(lat, lon, std_m, t)
         self.w_uncal = _PRIOR
+        self.refuted = False
+        self._t0 = t
 
     def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
         """A checkpoint: the config filter's state; the uncalibrated belief the same, its
@@ -137,6 +173,28 @@ class CalibrationBank:
         )
         self.uncal.restore(x, P * np.outer(k, k), grow_m2)
         self.w_uncal = _PRIOR
+        # a checkpoint of a refuted config's run holds the uncalibrated filter's
+        # calibration, and the next update refutes the priors again
+        self.refuted = False
+
+    def prior_distance2(self) -> float:
+        """The config filter's calibration against the config's priors, grown by the
+        random walks since they were set: a squared Mahalanobis distance."""
+        nz, x = self.config.noise, self.config.x
+        dt = max(0.0, self.config.t - self._t0)
+        var_c = nz.current_init_std_mps**2 + nz.current_walk_mps_per_sqrt_s**2 * dt
+        var_b = (
+            math.radians(nz.heading_bias_init_std_deg) ** 2
+            + math.radians(nz.heading_bias_walk_deg_per_sqrt_s) ** 2 * dt
+        )
+        var_s = nz.speed_scale_init_std**2 + nz.speed_scale_walk_per_sqrt_s**2 * dt
+        cn, ce, b, s = (float(v) for v in x[2:6])
+        return (cn * cn + ce * ce) / var_c + b * b / var_b + (s - 1.0) ** 2 / var_s
+
+    def _test_priors(self) -> None:
+        # NaN compares false: a broken state refutes nothing
+        if not self.refuted and self.prior_distance2() > _REFUTED_CHI2:
+            self.refuted = True
 
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         self.config.predict(t, dt, heading, speed, hd)
@@ -145,6 +203,7 @@ class CalibrationBank:
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
         self.config.gps_update(lat, lon, std_m, hd)
         self.uncal.gps_update(lat, lon, std_m, hd)
+        self._test_priors()
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         decision = self.config.range_update(m)
@@ -156,13 +215,16 @@ class CalibrationBank:
         num = w * lu
         den = num + (1.0 - w) * lc
         self.w_uncal = num / den if den > 0.0 and math.isfinite(den) else w
-        return decision
+        self._test_priors()
+        return du if self.refuted else decision
 
     def estimate(self) -> StateEstimate:
         a = self.config.estimate()
         b = self.uncal.estimate()
         w = self.w_uncal
-        # the uncalibrated mean seen from the config's (kilometres apart at most)
+        if self.refuted:
+            a, b, w = b, a, 1.0 - w
+        # the other belief's mean seen from the followed one's (kilometres apart at most)
         n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
         if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
             return a  # a broken other belief says nothing of this one's spread
@@ -177,23 +239,28 @@ class CalibrationBank:
         )
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
-        """A state of the config filter's chain (the smoother's), as that filter gives it."""
-        return self.config.estimate_of(x, P)
+        """A state of the followed filter's chain (the smoother's), as that filter gives it."""
+        return self.followed.estimate_of(x, P)
 
     def apply_fix(self, fix: Fix) -> None:
         """Ranges reach this mode one by one; the net's fix only starts it without GPS."""
 
     def corrections(self) -> Corrections | None:
-        c = self.config.corrections()
+        c = self.followed.corrections()
         if c is None:
             return None
         # built directly: dataclasses.replace costs more than the rest of a tick's estimate
         return Corrections(
-            c.heading_bias, c.speed_scale, c.beacon_offset_n, c.beacon_offset_e, self.w_uncal
+            c.heading_bias,
+            c.speed_scale,
+            c.beacon_offset_n,
+            c.beacon_offset_e,
+            self.w_uncal,
+            self.refuted,
         )
 
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return self.config.state_diff(a, b)
+        return self.followed.state_diff(a, b)
 
     def state_apply(self, x: np.ndarray, dx: np.ndarray, hd: float = 0.0) -> np.ndarray:
-        return self.config.state_apply(x, dx, hd)
+        return self.followed.state_apply(x, dx, hd)

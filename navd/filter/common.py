@@ -183,6 +183,8 @@ class Corrections:
     beacon_offset_e: float
     # the weight of the belief that the config's calibration priors are wrong (the bank's)
     calibration_doubt: float | None = None
+    # whether the config's priors are refuted, so the uncalibrated belief is followed
+    calibration_refuted: bool | None = None
 
 
 class NavFilter(Protocol):
@@ -233,9 +235,16 @@ class NavFilter(Protocol):
 @runtime_checkable
 class Smoothable(NavFilter, Protocol):
     """A mode the RTS smoother can run over: it records its steps when asked
-    (``history.enabled``), and says how its states differ and add up."""
+    (``keep_history``), and says how its states differ and add up."""
 
-    history: History
+    @property
+    def history(self) -> History: ...
+
+    def keep_history(self) -> None:
+        """Record the steps from now on."""
+
+    def close_history(self) -> None:
+        """Let go of the recorded steps (their file)."""
 
     # a mode's state is its own vector: how two differ and a difference adds is the mode's
     def state_diff(self, a: np.ndarray, b: np.ndarray) -> np.ndarray: ...

@@ -63,6 +63,12 @@ class EkfCore:
             noise.speed_scale_walk_per_sqrt_s,
         )
 
+    def keep_history(self) -> None:
+        self.history.enabled = True
+
+    def close_history(self) -> None:
+        self.history.close()
+
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""
         speed = math.hypot(float(self.x[2]), float(self.x[3]))

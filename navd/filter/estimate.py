@@ -105,6 +105,7 @@ def build(
         beacon_offset_n=None if c is None else c.beacon_offset_n,
         beacon_offset_e=None if c is None else c.beacon_offset_e,
         calibration_doubt=None if c is None else c.calibration_doubt,
+        calibration_refuted=None if c is None else c.calibration_refuted,
         heading_deg=math.degrees(geodesy.wrap_lon(heading)) % 360.0,
         speed_mps=speed,
         dr_lat=_deg(dr.lat) if dr_on else None,

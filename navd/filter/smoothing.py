@@ -26,7 +26,7 @@ _FIELDS = len(StateEstimate.__slots__)
 class _Segment:
     def __init__(self, flt: Smoothable) -> None:
         self.filter = flt
-        flt.history.enabled = True
+        flt.keep_history()
         self.steps = array("q")  # the step each tick's estimate was made at
         self.lines = tempfile.TemporaryFile()  # noqa: SIM115 - lives as long as the history, closed by close()
 
@@ -53,7 +53,7 @@ class _Segment:
 
     def close(self) -> None:
         self.lines.close()
-        self.filter.history.close()
+        self.filter.close_history()
 
 
 class Smoothing:

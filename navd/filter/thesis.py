@@ -122,6 +122,12 @@ class ThesisEKF:
         self.initialised = False
         self.history = History()
 
+    def keep_history(self) -> None:
+        self.history.enabled = True
+
+    def close_history(self) -> None:
+        self.history.close()
+
     def apply_fix(self, fix: Fix) -> None:
         """The thesis uses no acoustic fix."""
 
