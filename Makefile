@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-soak bench-calibration bench-advisory bench-files check-armhf check-arm64 clean
+	bench-robustness bench-soak bench-calibration bench-advisory bench-files bench-link-size check-armhf check-arm64 clean
 
 $(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c navd/filter/_window.c \
 		navd/filter/_buffer.h
@@ -67,6 +67,11 @@ bench-calibration: $(STAMP)
 # the observability advisory on 24 drawn radial missions, flown as planned and as advised
 bench-advisory: $(STAMP)
 	$(BIN)/python -m bench.advisory --missions 24 --write BENCHMARKS.md
+
+# zenoh payload sizes against a 9600-baud radio, from the log of a fresh `make demo`
+bench-link-size: demo
+	$(BIN)/python -m bench.link_size $$(ls -t out/demo/vehicle/log/navd-*.jsonl | head -n 1) \
+	  --write BENCHMARKS.md
 
 # an hour of the daemon under faults; needs unshare and mount (root) for the full-disk fault
 bench-soak: $(STAMP)
