@@ -24,6 +24,7 @@ def format_estimate(e: Estimate) -> str:
         f"{e.mode:9s} {e.lat:11.7f} {e.lon:12.7f} depth {e.depth:5.2f} m  "
         f"1-sigma {e.std_n:5.1f}/{e.std_e:5.1f} m  current "
         f"{e.current_n:+.2f}N {e.current_e:+.2f}E m/s  {e.integrity}"
+        + ("  calibration priors refuted" if e.calibration_refuted else "")
     )
 
 

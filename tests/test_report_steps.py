@@ -1,4 +1,5 @@
-"""The report's steps apart from its figures: what the summary says, without matplotlib."""
+"""The report's steps apart from its figures (what the summary says, without matplotlib),
+and navd watch's line for an estimate."""
 
 from __future__ import annotations
 
@@ -36,6 +37,16 @@ def test_the_summary_counts_what_the_filter_did() -> None:
     assert lines[-1].startswith("final estimate: 37.0012000, -80.6000000")
 
 
+def test_the_summary_says_when_the_calibration_priors_were_refuted() -> None:
+    m = _mission()
+    assert not any("refuted" in x for x in summary(m))
+    refuted = _est(120.0, calibration_refuted=True, heading_bias_deg=4.5, speed_scale=0.95)
+    m.estimates[2:] = [refuted]
+    line = next(x for x in summary(m) if "refuted" in x)
+    assert line.startswith("calibration priors refuted at 120 s")
+    assert "heading bias +4.5 deg, speed scale 0.950" in line
+
+
 def test_time_is_minutes_since_the_first_estimates_utc() -> None:
     minutes, label = minutes_axis(_mission().estimates)
     assert minutes(120.0) == 2.0 and label == "minutes since 2026-06-01T12:00:00.000+00:00"
@@ -56,3 +67,12 @@ def test_the_summary_needs_no_matplotlib() -> None:
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert int(r.stdout) >= 5
+
+
+def test_navd_watch_marks_an_estimate_whose_calibration_priors_were_refuted() -> None:
+    from navd.watch import format_estimate
+
+    assert "refuted" not in format_estimate(_est(60.0))
+    assert format_estimate(_est(60.0, calibration_refuted=True)).endswith(
+        "ok  calibration priors refuted"
+    )

@@ -221,6 +221,7 @@ def summary(r: ReportInput) -> list[str]:
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
+    lines += _calibration(r)
     lines += _observability(r)
     lines += _against_truth(r)
     last = est[-1]
@@ -229,6 +230,28 @@ def summary(r: ReportInput) -> list[str]:
         f"{last.current_n:+.3f} N {last.current_e:+.3f} E m/s"
     )
     return lines
+
+
+def _calibration(r: ReportInput) -> list[str]:
+    """When the config's calibration priors were refuted, what the crew should change: the
+    estimate followed the widened belief from then on (navd/filter/bank.py), and the next
+    mission starts from the config again."""
+    first = next((e for e in r.estimates if e.calibration_refuted), None)
+    if first is None:
+        return []
+    last = r.estimates[-1]
+    learned = ""
+    if last.heading_bias_deg is not None and last.speed_scale is not None:
+        learned = (
+            f"; at the end: heading bias {last.heading_bias_deg:+.1f} deg, speed scale "
+            f"{last.speed_scale:.3f}, current {last.current_n:+.2f} N {last.current_e:+.2f} E m/s"
+        )
+    return [
+        f"calibration priors refuted at {first.t - r.estimates[0].t:.0f} s: the ranges put "
+        "the current, heading bias or speed scale outside navigation.noise "
+        "(current_init_std_mps, heading_bias_init_std_deg, speed_scale_init_std; measure or "
+        f"widen them){learned}"
+    ]
 
 
 def _observability(r: ReportInput) -> list[str]:
