@@ -213,3 +213,28 @@ def test_a_re_acquired_current_carries_the_calibrations_uncertainty() -> None:
     # ... and correlated with it as the error it may be
     assert np.allclose(f.P[2:4, 4:6], -J @ P_cal)
     assert np.allclose(f.P, f.P.T) and np.all(np.linalg.eigvalsh(f.P) > 0.0)
+
+
+def test_the_predicted_range_is_its_mean_over_the_filters_uncertainty() -> None:
+    """Off the line of sight a range only lengthens: a filter unsure across it must expect
+    a longer range than the one from its mean, or it reads every range as long."""
+    f = _ekf(pos_std=60.0)
+    _run(f, 20.0)
+    blat, blon = _beacon(-300.0, 30.0)
+    m = RangeMeas(f.t, f.t - 0.4, 0.0, "b", blat, blon, -1.0, -1.0, 1.0)
+    first, H = f.predicted_range(m)
+    mean, var = f.range_moments(m)
+    x0 = f.x.copy()
+    rng = np.random.default_rng(7)
+    draws = rng.multivariate_normal(np.zeros(N_STATES), f.P, size=10000)
+    ranges = []
+    for dx in draws:
+        f.x = f.state_apply(x0, dx, -1.0)
+        ranges.append(f.predicted_range(m)[0])
+    f.x = x0
+    sampled = float(np.mean(ranges))
+    se = float(np.std(ranges)) / math.sqrt(len(ranges))
+    assert abs(sampled - first) > 5 * se  # the first-order prediction is short
+    assert sampled == pytest.approx(mean, abs=3 * se)
+    assert var > float(H @ f.P @ H)
+    assert float(np.var(ranges)) == pytest.approx(var, rel=0.1)

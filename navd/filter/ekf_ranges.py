@@ -19,6 +19,9 @@ re-acquisition from consistent evidence.
   are solved again together, each linearised where the later ones put the vehicle
   (navd/filter/relinearise.py), since one beacon says nothing across its line of sight
   and the estimate that chose each range's direction may have been off across it.
+* The range expected over the filter's uncertainty, to second order (its mean lies
+  beyond the range from the mean position when the position is unsure across the line
+  of sight), in the gate and the update alike.
 * The beacon's reported-position error: the first beacon heard has its own states
   (``o_n, o_e``); others add their position error to the range variance.
 """
@@ -96,6 +99,13 @@ class RangeFusion(EkfCore):
         r, H, _ = self._line_of_sight(m)
         return r, H
 
+    def range_moments(self, m: RangeMeas) -> tuple[float, float]:
+        """The range's expected value and variance (less its own noise) over the filter's
+        uncertainty, to second order: what the gate and the update take."""
+        r, H, sight = self._line_of_sight(m)
+        bias, var2 = self._second_order(r, H, sight)
+        return r + bias, float(H @ self.P @ H) + var2
+
     def _line_of_sight(self, m: RangeMeas) -> tuple[float, np.ndarray, LineOfSight]:
         lat, lon = float(self.x[0]), float(self.x[1])
         dn_p, de_p = self.track.displacement_since(m.t_ping)
@@ -130,6 +140,35 @@ class RangeFusion(EkfCore):
         sight = LineOfSight(r_out, gn_o, ge_o, r_back, gn_b, ge_b, lag_o, lag_b, tracked)
         return 0.5 * (r_out + r_back), H, sight
 
+    def _second_order(self, r: float, H: np.ndarray, sight: LineOfSight) -> tuple[float, float]:
+        """The second-order terms of the range over the filter's uncertainty (the
+        second-order EKF: Bar-Shalom, Li and Kirubarajan 2001, section 10.3.2): its mean
+        lies ``tr(M P) / 2`` beyond the range from the mean position and its variance
+        grows by ``tr(M P M P) / 2``, where ``M = (I - g g^T) / r`` is the Hessian of the
+        slant range in the horizontal position (``g`` the range's gradient there) and ``P``
+        the covariance of the vehicle's position relative to the beacon: position, the
+        current's drift since the ping, the tracked beacon's offset.
+
+        Why: a position unsure by ``s`` across the line of sight makes every range read
+        about ``s^2 / 2r`` long; a first-order filter takes the true ranges for multipath,
+        gates them, and its cross-range uncertainty never catches up with its error.
+        """
+        g = H[:2]
+        lag = 0.5 * (sight.lag_ping + sight.lag_reply)
+        A = np.zeros((2, N_STATES))
+        A[0, 0] = A[1, 1] = 1.0
+        A[0, 2] = A[1, 3] = -lag
+        if sight.tracked:
+            A[0, 6] = A[1, 7] = -1.0
+        Pp = A @ self.P @ A.T
+        M = (np.eye(2) - np.outer(g, g)) / max(r, 1.0)
+        MP = M @ Pp
+        bias = 0.5 * float(np.trace(MP))
+        var2 = 0.5 * float(np.trace(MP @ MP))
+        if not (math.isfinite(bias) and math.isfinite(var2)):
+            return 0.0, 0.0
+        return bias, var2
+
     def _track_beacon(self, m: RangeMeas) -> None:
         """Adopt the first beacon heard as the one whose position error is estimated."""
         if self.primary is not None or m.beacon_position_std_m <= 0.0:
@@ -148,6 +187,10 @@ class RangeFusion(EkfCore):
         if m.beacon != self.primary:
             # another beacon's position error is not a state: count it as range noise
             r_var += m.beacon_position_std_m**2
+        # the range's mean and spread over the filter's uncertainty, not at its mean
+        bias, var2 = self._second_order(expected, H, sight)
+        expected += bias
+        r_var += var2
         residual = m.range_m - expected
         S = float(H @ self.P @ H) + r_var
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
@@ -184,7 +227,7 @@ class RangeFusion(EkfCore):
         K, self.P, _ = joseph_update(self.P, H, r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
-        self._relinearise(sight, m, r_var, x_prior, P_prior)
+        self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return GateDecision(True, residual, gate_m, "ok")
@@ -196,9 +239,12 @@ class RangeFusion(EkfCore):
         r_var: float,
         x_prior: np.ndarray,
         P_prior: np.ndarray,
+        range_m: float,
     ) -> None:
         """Add the range just fused to the window and solve the window again
-        (navd/filter/relinearise.py)."""
+        (navd/filter/relinearise.py).  ``range_m`` is the range less its second-order
+        part at this prior (see _second_order), so the window's first-order model about
+        the states it solves for predicts it."""
         steps = self._steps
         while steps and self.t - steps[0].t > WINDOW_S:
             steps.popleft()
@@ -230,7 +276,7 @@ class RangeFusion(EkfCore):
                 phi,
                 qd,
                 sight,
-                m.range_m,
+                range_m,
                 r_var,
                 x_prior,
                 self.x.copy(),
