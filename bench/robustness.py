@@ -38,7 +38,7 @@ from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.score import Score, score
 from navd.config import load_config
 from navd.formats.truth import read_truth
-from navd.hil.bound import mission_bound
+from navd.hil.bound import matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -261,16 +261,24 @@ def clean(dr: Draw) -> Draw:
 
 
 def run_one(
-    seed: int, workdir: str, noise_seed: int | None = None, no_outliers: bool = False
+    seed: int,
+    workdir: str,
+    noise_seed: int | None = None,
+    no_outliers: bool = False,
+    matched_noise: bool = False,
 ) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
-    with ``no_outliers``, without its outliers (:func:`clean`)."""
+    with ``no_outliers``, without its outliers (:func:`clean`); with ``matched_noise``,
+    navd given the bound's own model of the mission (navd/hil/bound.py,
+    ``matched_config``)."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
     write_mission(mission, d)
     b = mission_bound(mission, load_config(d / "config.yaml"))
+    if matched_noise:
+        write_mission(mission, d, matched_config(mission, load_config(d / "config.yaml")))
     truth = read_truth(d / "truth.jsonl")
     out_d, err_d = replay_mission(d, "default")
     out_t, err_t = replay_mission(d, "thesis")
@@ -423,6 +431,12 @@ def main() -> int:
         help="the same missions without multipath or corrupt beacon positions (what the "
         "bound's ideal outlier detector is worth)",
     )
+    p.add_argument(
+        "--matched-noise",
+        action="store_true",
+        help="navd configured with the bound's own model of each mission (its sensor noise, "
+        "priors the size of its errors): what the default's conservative noise model costs",
+    )
     args = p.parse_args()
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
@@ -435,6 +449,7 @@ def main() -> int:
         n = len(seeds)
         results = run_all(
             run_one, seeds, [tmp] * n, [None] * n, [args.no_outliers] * n,
+            [args.matched_noise] * n,
             jobs=args.jobs, scheduler=args.scheduler,
         )
     took = time.perf_counter() - t0
@@ -448,7 +463,8 @@ def main() -> int:
                 fh.write(json.dumps(row) + "\n")
     cmd = f"`python -m bench.robustness --missions {args.missions}" + (
         f" --only {args.only}" if args.only else "") + (
-        " --no-outliers`" if args.no_outliers else "`")
+        " --no-outliers" if args.no_outliers else "") + (
+        " --matched-noise`" if args.matched_noise else "`")
     where = f"Dask at {args.scheduler}" if args.scheduler else f"{args.jobs} worker processes"
     pace = (
         f"Ran in {took / 60:.1f} min on {where} ({took / len(seeds):.2f} s a mission; "
@@ -457,8 +473,10 @@ def main() -> int:
     report(
         f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
         args.write,
-        "bench-robustness-no-outliers" if args.no_outliers else "bench-robustness",
-        "Robustness without outliers" if args.no_outliers else "Robustness",
+        "bench-robustness" + "-no-outliers" * args.no_outliers
+        + "-matched-noise" * args.matched_noise,
+        "Robustness" + " without outliers" * args.no_outliers
+        + " with the bound's noise model" * args.matched_noise,
     )
     return 0
 

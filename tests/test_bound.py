@@ -5,11 +5,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from navd.hil.bound import mission_bound
+from navd.hil.bound import matched_config, mission_bound
 from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import crew_config
 from navd.hil.world import simulate
-from navd.settings import config_from_dict
+from navd.settings import config_from_dict, deep_merge
 
 
 def _bound(sc, seed: int = 1) -> float:
@@ -40,3 +40,22 @@ def test_the_ideal_detector_keeps_only_clean_replies() -> None:
     m = simulate(sc, 2)
     b = mission_bound(m, config_from_dict(crew_config(sc)))
     assert 0 < b.ranges == len(m.channel.clean) < m.replies
+
+
+def test_the_matched_config_is_a_valid_config_with_the_bounds_model() -> None:
+    """bench.robustness --matched-noise gives navd the bound's own model of a mission: a
+    config the config layer takes, with the simulator's sensor noise, and a current walk
+    as fast as the truth's current changes."""
+    walks = {}
+    for name in ("cb1", "tidal"):
+        sc = load_scenario(name)
+        m = simulate(sc, 1)
+        crew = crew_config(sc)
+        cfg = config_from_dict(deep_merge(crew, matched_config(m, config_from_dict(crew))))
+        nz = cfg.navigation.noise
+        assert nz.heading_std_deg == sc.sensors.compass_noise_deg
+        assert nz.input_corr_s == 1.0 / sc.sensors.rate_hz
+        assert nz.range_std_m >= sc.acoustics.range_noise_m
+        assert cfg.beacons["udb"].position_std_m == sc.boat.gps_std_m
+        walks[name] = nz.current_walk_mps_per_sqrt_s
+    assert walks["cb1"] < 0.1 * walks["tidal"]

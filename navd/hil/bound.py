@@ -92,6 +92,52 @@ def _prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarray:
     return P
 
 
+def _range_var(m: Mission) -> float:
+    """A range's noise variance: the modem's, and for a boat's transducer its swing (the
+    stationary variance per axis of an AR(1) process held within swing_m)."""
+    sc, b = m.scenario, m.scenario.boat
+    if sc.acoustics.transponders:
+        return sc.acoustics.range_noise_m**2
+    step2 = (SWING_STEP * b.swing_m) ** 2 / sc.sensors.rate_hz
+    swing_var = min(b.swing_m**2, step2 / (1.0 - SWING_MEMORY**2))
+    return sc.acoustics.range_noise_m**2 + swing_var
+
+
+def matched_config(m: Mission, cfg: Config) -> dict[str, object]:
+    """Config overrides that give navd's default mode the bound's own model of ``m``: its
+    sensor noise (white at the sensor rate), range noise, priors as large as the
+    mission's errors, a current walk as fast as the truth's current changes over the
+    mission (as a mean square), no calibration walks, and the boat's GPS error.
+
+    Not a config for a vehicle (a crew knows none of this): it separates the cost of the
+    default's conservative noise model from what the filter itself loses (bench
+    robustness ``--matched-noise``)."""
+    sc, s, tr = m.scenario, m.scenario.sensors, m.truth
+    col = {"udb": 6}
+    P = _prior(m, cfg, col)
+    stride = max(1, round(_STEP_S * s.rate_hz))
+    rates = [_truth_current_rate(m, i, i + stride) for i in range(0, len(tr) - stride, stride)]
+    walk = math.sqrt(CURRENT_MEMORY_S * (sum(rates) / len(rates))) if rates else 0.0
+    noise = {
+        "range_std_m": math.sqrt(_range_var(m)),
+        "heading_std_deg": max(s.compass_noise_deg, 1e-3),
+        "speed_std_mps": max(s.rpm_noise / s.rpm_per_mps, 1e-4),
+        "input_corr_s": 1.0 / s.rate_hz,
+        "current_init_std_mps": math.sqrt(P[2, 2]),
+        "heading_bias_init_std_deg": math.degrees(math.sqrt(P[4, 4])),
+        "speed_scale_init_std": math.sqrt(P[5, 5]),
+        "current_walk_mps_per_sqrt_s": walk,
+        "heading_bias_walk_deg_per_sqrt_s": 0.0,
+        "speed_scale_walk_per_sqrt_s": 0.0,
+        "gps_std_m": max(s.gps_std_m, 0.1),
+    }
+    out: dict[str, object] = {"navigation": {"noise": noise}}
+    if not sc.acoustics.transponders:
+        b = sc.boat
+        out["beacons"] = {"udb": {"position_std_m": b.gps_std_m, "position_corr_s": b.gps_corr_s}}
+    return out
+
+
 def _measurements(m: Mission, col: dict[str, int]) -> list[tuple[float, str, float | str]]:
     """In time order: ("gps", t, std) and ("range", t, beacon) for the clean replies."""
     s = m.scenario.sensors
@@ -130,10 +176,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
 
     sig_psi = math.radians(s.compass_noise_deg)
     sig_u = s.rpm_noise / s.rpm_per_mps
-    # the swing's stationary variance per axis (an AR(1) process, held within swing_m)
-    step2 = (SWING_STEP * b.swing_m) ** 2 / rate
-    swing_var = min(b.swing_m**2, step2 / (1.0 - SWING_MEMORY**2))
-    r_var = sc.acoustics.range_noise_m**2 + (0.0 if fixed else swing_var)
+    r_var = _range_var(m)
     phi_boat = math.exp(-_STEP_S / b.gps_corr_s)
 
     meas = _measurements(m, col)
