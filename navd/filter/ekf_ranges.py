@@ -169,6 +169,25 @@ class RangeFusion(EkfCore):
             return 0.0, 0.0
         return bias, var2
 
+    def _floor_along_sight(self, H: np.ndarray, std_m: float) -> None:
+        """Keep the position's variance along the line of sight to a beacon whose
+        position error is not a state at least that error's variance.
+
+        Such an error is counted as range noise, as if each reply's were new; but a
+        surveyed transponder's is the same for every reply (a boat's GPS, for a minute or
+        two).  Averaged over many replies as white noise it would shrink below what the
+        ranges can say: the vehicle is never known better, along that line, than the
+        beacon it ranges to."""
+        g = H[:2]
+        norm = math.hypot(float(g[0]), float(g[1]))
+        if not (norm > 0.0 and std_m > 0.0):
+            return
+        a = np.zeros(N_STATES)
+        a[:2] = g / norm
+        short = std_m * std_m - float(a @ self.P @ a)
+        if short > 0.0:
+            self.P = self.P + short * np.outer(a, a)
+
     def _track_beacon(self, m: RangeMeas) -> None:
         """Adopt the first beacon heard as the one whose position error is estimated."""
         if self.primary is not None or m.beacon_position_std_m <= 0.0:
@@ -228,6 +247,8 @@ class RangeFusion(EkfCore):
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
+        if m.beacon != self.primary:
+            self._floor_along_sight(H, m.beacon_position_std_m)
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return GateDecision(True, residual, gate_m, "ok")
