@@ -36,12 +36,12 @@ from typing import Any
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.score import Score, score
-from navd.config import load_config
 from navd.formats.truth import read_truth
 from navd.hil.bound import matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import write_mission
+from navd.hil.sim_cli import mission_config, write_mission
 from navd.hil.world import simulate
+from navd.settings import config_from_dict
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5
@@ -275,10 +275,9 @@ def run_one(
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
-    write_mission(mission, d)
-    b = mission_bound(mission, load_config(d / "config.yaml"))
-    if matched_noise:
-        write_mission(mission, d, matched_config(mission, load_config(d / "config.yaml")))
+    crew = config_from_dict(mission_config(mission))
+    write_mission(mission, d, matched_config(mission, crew) if matched_noise else None)
+    b = mission_bound(mission, crew)
     truth = read_truth(d / "truth.jsonl")
     out_d, err_d = replay_mission(d, "default")
     out_t, err_t = replay_mission(d, "thesis")

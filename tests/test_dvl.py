@@ -13,8 +13,8 @@ from navd.analysis.replay import run_navigator
 from navd.analysis.score import _ne_error
 from navd.filter.dvl import DvlDeadReckoner, DvlSpec, rotation_body_to_ned, velocity_error
 from navd.formats.mlog import MeasurementLog
-from navd.hil.sim_cli import crew_config
-from navd.settings import config_from_dict, deep_merge
+from navd.hil.sim_cli import mission_config
+from navd.settings import config_from_dict
 
 
 @pytest.mark.parametrize("att", [(0.0, 0.0, 0.3), (0.1, -0.2, 2.5), (-0.3, 0.25, -1.2)])
@@ -50,7 +50,7 @@ def test_spike_is_replaced_but_a_real_change_is_believed() -> None:
 
 def test_predicted_error_bounds_the_actual_and_tells_when_to_surface() -> None:
     m = mission("dvl", 1)
-    cfg = config_from_dict(deep_merge(crew_config(m.scenario), m.config_overrides))
+    cfg = config_from_dict(mission_config(m))
     res = run_navigator(MeasurementLog({}, m.records, []), cfg)
     truth = {round(s.t, 3): s for s in m.truth}
     sub = [o for o in rows(res.outputs) if o["type"] == "estimate" and o["mode"] == "submerged"]

@@ -10,14 +10,14 @@ from navd.analysis.replay import run_navigator
 from navd.analysis.score import score
 from navd.filter.vlbl import NetRange, VirtualNet
 from navd.formats.mlog import MeasurementLog
-from navd.hil.sim_cli import crew_config
+from navd.hil.sim_cli import mission_config
 from navd.records import Gps
 from navd.settings import ConfigError, config_from_dict, deep_merge
 
 
 def _run(name: str, records=None):
     m = mission(name, 1)
-    cfg = config_from_dict(deep_merge(crew_config(m.scenario), m.config_overrides))
+    cfg = config_from_dict(mission_config(m))
     res = run_navigator(MeasurementLog({}, records or m.records, []), cfg)
     return res, score(res.outputs, m.truth)
 
@@ -66,7 +66,7 @@ def test_vlbl_selectable_as_the_navigation_mode() -> None:
     m = mission("lbl-3", 1)
     cfg = config_from_dict(
         deep_merge(
-            deep_merge(crew_config(m.scenario), m.config_overrides),
+            mission_config(m),
             {"navigation": {"filter": "vlbl"}},
         )
     )

@@ -203,7 +203,8 @@ class RangeFusion(EkfCore):
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
         r_var = m.std_m**2
-        if m.beacon != self.primary:
+        untracked = m.beacon != self.primary
+        if untracked:
             # another beacon's position error is not a state: count it as range noise
             r_var += m.beacon_position_std_m**2
         # the range's mean and spread over the filter's uncertainty, not at its mean
@@ -247,7 +248,7 @@ class RangeFusion(EkfCore):
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
-        if m.beacon != self.primary:
+        if untracked:
             self._floor_along_sight(H, m.beacon_position_std_m)
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())

@@ -113,8 +113,7 @@ def matched_config(m: Mission, cfg: Config) -> dict[str, object]:
     default's conservative noise model from what the filter itself loses (bench
     robustness ``--matched-noise``)."""
     sc, s, tr = m.scenario, m.scenario.sensors, m.truth
-    col = {"udb": 6}
-    P = _prior(m, cfg, col)
+    P = _prior(m, cfg, {})  # the calibration's priors (no beacon states)
     stride = max(1, round(_STEP_S * s.rate_hz))
     rates = [_truth_current_rate(m, i, i + stride) for i in range(0, len(tr) - stride, stride)]
     walk = math.sqrt(CURRENT_MEMORY_S * (sum(rates) / len(rates))) if rates else 0.0

@@ -51,6 +51,12 @@ def crew_config(sc: Scenario) -> dict[str, object]:
     return merged
 
 
+def mission_config(m: Mission) -> dict[str, object]:
+    """The crew's config of a simulated mission: :func:`crew_config` with what the
+    simulator adds (a fixed array's surveyed transponders)."""
+    return deep_merge(crew_config(m.scenario), m.config_overrides)
+
+
 def write_mission(
     m: Mission, out_dir: Path, config_overrides: Mapping[str, object] | None = None
 ) -> None:
@@ -59,8 +65,7 @@ def write_mission(
         w = MeasurementWriter(fh, m.scenario.start_utc, scenario=m.scenario.name, seed=m.seed)
         for rec in m.records:
             w.write(rec)
-    cfg = deep_merge(crew_config(m.scenario), m.config_overrides)
-    cfg = deep_merge(cfg, config_overrides or {})
+    cfg = deep_merge(mission_config(m), config_overrides or {})
     (out_dir / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
     with (out_dir / "truth.jsonl").open("w", encoding="utf-8") as fh:
         write_truth(fh, m.truth)
