@@ -83,6 +83,22 @@ def test_a_right_config_keeps_the_config_filters_position_and_about_its_ellipse(
     assert sum(x for x, _ in seen) / len(seen) >= 0.95
 
 
+def test_the_ellipse_keeps_a_share_of_the_other_belief_however_sure_the_ranges() -> None:
+    """Ranges test a belief only along their line of sight, so however far they drive the
+    weight of the uncalibrated belief down, the published ellipse keeps the share of its
+    spread that the chance of a change before the next range gives it."""
+    bank, _ = _run(NoiseConfig(current_init_std_mps=0.1), (0.25, -0.37), 2, minutes=8.0)
+    assert not bank.refuted  # so the published belief is the config's
+    a, b = bank.config.estimate(), bank.uncal.estimate()
+    n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
+    other = b.var_n + b.var_e + n * n + e * e
+    assert other > 4.0 * (a.var_n + a.var_e)  # the two beliefs differ, or this tests nothing
+    for w in (0.0, 1e-9, 0.01, 0.5):
+        bank.w_uncal = w
+        est = bank.estimate()
+        assert est.var_n + est.var_e >= 0.05 * other + 0.95 * (a.var_n + a.var_e) - 1e-9
+
+
 def test_the_uncalibrated_belief_is_wider_but_bounded() -> None:
     nz = NoiseConfig(current_init_std_mps=0.05, heading_bias_init_std_deg=1.0,
                      speed_scale_init_std=0.1)

@@ -66,10 +66,10 @@ _MAX_SCALE_STD = 0.25
 # position), spread evenly over the multipath lengths of a coastal site.
 _OUTLIER_PROB = 0.3
 _OUTLIER_SPREAD_M = 300.0
-# The chance per range that the belief that holds has changed.  It is also the least
-# weight either keeps, so the ellipse always holds a twentieth of the other belief's
-# spread: smaller (0.01, measured) left the truth outside it for the minutes the
-# evidence takes to build.
+# The chance per range that the belief that holds has changed.  The ellipse is drawn
+# with the weights for the time until the next range, after that chance, so it always
+# holds at least a twentieth of the other belief's spread: smaller (0.01, measured) left
+# the truth outside it for the minutes the evidence takes to build.
 _SWITCH = 0.05
 _PRIOR = 0.5  # before any range, neither belief is the likelier
 # The config's priors are refuted past this distance of the config filter's calibration
@@ -91,6 +91,11 @@ def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
         heading_bias_init_std_deg=wider(nz.heading_bias_init_std_deg, _WIDEN, _MAX_BIAS_STD_DEG),
         speed_scale_init_std=wider(nz.speed_scale_init_std, _WIDEN, _MAX_SCALE_STD),
     )
+
+
+def switched(w: float) -> float:
+    """A belief's weight after the chance that the belief that holds has changed."""
+    return (1.0 - _SWITCH) * w + _SWITCH * (1.0 - w)
 
 
 def range_likelihood(residual: float, s: float) -> float:
@@ -211,7 +216,7 @@ class CalibrationBank:
         lc = range_likelihood(decision.residual_m, self.config.last_s)
         lu = range_likelihood(du.residual_m, self.uncal.last_s)
         # the transition, then the evidence (Bayes' rule over the two beliefs)
-        w = (1.0 - _SWITCH) * self.w_uncal + _SWITCH * (1.0 - self.w_uncal)
+        w = switched(self.w_uncal)
         num = w * lu
         den = num + (1.0 - w) * lc
         self.w_uncal = num / den if den > 0.0 and math.isfinite(den) else w
@@ -221,7 +226,11 @@ class CalibrationBank:
     def estimate(self) -> StateEstimate:
         a = self.config.estimate()
         b = self.uncal.estimate()
-        w = self.w_uncal
+        # The weight after the evidence says which belief held at the last range; the
+        # one until the next range allows the change the model allows per range.  A
+        # weight the evidence drove to nearly nothing would otherwise draw the ellipse
+        # of one belief alone, from ranges that tested only their line of sight.
+        w = switched(self.w_uncal)
         if self.refuted:
             a, b, w = b, a, 1.0 - w
         # the other belief's mean seen from the followed one's (kilometres apart at most)
