@@ -75,11 +75,14 @@ def test_a_current_ten_times_its_prior_stays_inside_the_published_ellipse() -> N
 
 def test_a_right_config_keeps_the_config_filters_position_and_about_its_ellipse() -> None:
     """With the config right, heavy multipath: the published position is the config
-    filter's, the ellipse not much wider than its own, and the truth inside it."""
+    filter's, and the truth inside its ellipse.  The ellipse is wider than the config
+    filter's own by what the other belief allows (ten times the priors, and water that may
+    turn like the site's strongest tide), with the ranges unable to tell the two apart
+    here; but within twice its one-sigma size after 20 minutes."""
     bank, seen = _run(NoiseConfig(), (0.1, 0.05), 3, minutes=20.0, outliers=0.3)
     a, b = bank.config.estimate(), bank.estimate()
     assert (b.lat, b.lon, b.current_n, b.current_e) == (a.lat, a.lon, a.current_n, a.current_e)
-    assert b.var_n + b.var_e < 1.5**2 * (a.var_n + a.var_e)
+    assert b.var_n + b.var_e < 2.0**2 * (a.var_n + a.var_e)
     assert sum(x for x, _ in seen) / len(seen) >= 0.95
 
 

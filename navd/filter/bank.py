@@ -16,13 +16,17 @@ an outlier part, so a multipath reply that both refuse is evidence for neither. 
 transition probability per range keeps either belief alive.
 
 The estimate is the config filter's mean with the covariance of the mixture about
-it, ``(1 - w) P_c + w (P_u + d d^T)``, ``d`` the uncalibrated filter's mean seen
-from it and ``w`` its weight: while the ranges say the config may be wrong, the
-published ellipse holds where the other belief puts the vehicle, and integrity
-degrades with it.  The mean is not moved to the mixture's: with one beacon a wrong
-filter still predicts the next range well while it sits on the same circle, so a
-few ranges can give a diverged ``uncal`` nearly all the weight, and following it
-made the drawn missions worse (BENCHMARKS.md).
+it, ``(1 - w) P_c + w (P_u + D + d d^T)``, ``d`` the uncalibrated filter's mean seen
+from it and ``w`` its weight until the next range: while the ranges say the config may
+be wrong, the published ellipse holds where the other belief puts the vehicle, and
+integrity degrades with it.  ``D`` is what water turning like the site's strongest
+tide would add to the uncalibrated filter's error (navd/filter/consider.py): one
+beacon cannot see a current change across its line of sight, so the belief that
+allows for unknown water allows for that too, in its spread but not in its gains.
+The mean is not moved to the mixture's: with one beacon a wrong filter still predicts
+the next range well while it sits on the same circle, so a few ranges can give a
+diverged ``uncal`` nearly all the weight, and following it made the drawn missions
+worse (BENCHMARKS.md).
 
 Until the config's priors are refuted.  The config filter's own calibration is then
 further from them than they allow: its current, heading bias and speed scale, against
@@ -46,6 +50,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.consider import CurrentConsider
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import chi2_quantile
 from navd.filter.lsfix import Fix
@@ -72,6 +77,12 @@ _OUTLIER_SPREAD_M = 300.0
 # the truth outside it for the minutes the evidence takes to build.
 _SWITCH = 0.05
 _PRIOR = 0.5  # before any range, neither belief is the likelier
+# The water the uncalibrated belief allows for may turn like the site's strongest tide
+# (the principal lunar semidiurnal period): its published covariance adds what such a
+# stream would beyond the filter's own walk (navd/filter/consider.py); its mean, gates
+# and weights keep the config's walk.
+_M2_PERIOD_S = 12.42 * 3600.0
+_CURRENT_LEARNT_S = 600.0
 # The config's priors are refuted past this distance of the config filter's calibration
 # from them (chi-square, 4 degrees of freedom: current north and east, bias, scale).
 _REFUTED_CHI2 = chi2_quantile(0.999, 4)
@@ -91,6 +102,14 @@ def uncalibrated_noise(nz: NoiseConfig, max_current_mps: float) -> NoiseConfig:
         heading_bias_init_std_deg=wider(nz.heading_bias_init_std_deg, _WIDEN, _MAX_BIAS_STD_DEG),
         speed_scale_init_std=wider(nz.speed_scale_init_std, _WIDEN, _MAX_SCALE_STD),
     )
+
+
+def tidal_walk(max_current_mps: float) -> float:
+    """The current walk (m/s/sqrt s) that keeps up with a semidiurnal stream as strong as
+    the site's strongest: its fastest change, amplitude times 2 pi / T, over the time
+    ranges from one beacon take to determine a current (docs/replay.md, "A current that
+    changes")."""
+    return max_current_mps * 2.0 * math.pi / _M2_PERIOD_S * math.sqrt(_CURRENT_LEARNT_S)
 
 
 def switched(w: float) -> float:
@@ -118,6 +137,9 @@ class CalibrationBank:
         from it."""
         self.config = config
         self.uncal = config.with_noise(uncalibrated_noise(config.noise, config.max_current))
+        own = self.uncal.noise.current_walk_mps_per_sqrt_s
+        fast = tidal_walk(config.max_current)
+        self.uncal.consider = CurrentConsider(math.sqrt(max(0.0, fast * fast - own * own)))
         self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
         self.refuted = False  # the config's priors, by the config filter's own estimate
         self._t0 = 0.0  # when the priors were set (the walks grow them from then)

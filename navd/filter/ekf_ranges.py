@@ -245,6 +245,8 @@ class RangeFusion(EkfCore):
             # outlier cannot drag the estimate, a true range still moves it.
             r_var = residual * math.sqrt(S) / _HUBER_K - (S - r_var)
         K, self.P, _ = joseph_update(self.P, H, r_var)
+        if self.consider is not None:
+            self.consider.update(self.t, K, H)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
@@ -391,6 +393,8 @@ class RangeFusion(EkfCore):
         self._limit_current()
         self._forget_ranges()
         self.t_anchor = m.t
+        if self.consider is not None:
+            self.consider.reset(self.t)
         self.reacquisitions += 1
         self.history.correct(self.x.copy(), self.P.copy())
         return True
