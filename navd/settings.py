@@ -125,7 +125,8 @@ class NavigationConfig:
     stale_input_s: float = _num(1.0, gt=0.0)
     max_gap_s: float = _num(600.0, gt=0.0)  # a longer silence in the input restarts the filter
     # the fastest current this site can have (strong tidal races reach about 3 m/s): a
-    # learned current is held below it, and a re-acquisition implying more is refused
+    # learned current is held below it, a re-acquisition implying more is refused, and
+    # the default mode's ellipse allows for a tidal stream this strong (navd/filter/bank.py)
     max_current_mps: float = _num(2.0, gt=0.0, hi=10.0)
     # the compass's deviation curve A, B, C, D, E in degrees (navd/filter/compass.py),
     # as ``navd calibrate compass`` fits it; empty: none
