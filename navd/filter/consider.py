@@ -30,19 +30,18 @@ class CurrentConsider:
         """``extra_walk``: the walk the water may have beyond the filter's own (m/s/sqrt s)."""
         self.q2 = max(0.0, extra_walk_mps_per_sqrt_s) ** 2
         self.t = 0.0
-        # (dn, de, dc_n, dc_e): metres and m/s; and row-major, as floats
-        self.D = np.zeros((4, 4))
+        # D over (dn, de, dc_n, dc_e), metres and m/s, row-major as floats: an estimate
+        # reads it at every tick, a range rewrites it every few seconds
         self._flat = [0.0] * 16
 
     def reset(self, t: float) -> None:
         """A position and current fixed without this error (GPS, a re-acquisition's fit)."""
         self.t = t
-        self.D = np.zeros((4, 4))
         self._flat = [0.0] * 16
 
     def _moved(self, t: float) -> np.ndarray:
         dt = max(0.0, t - self.t)
-        D = self.D
+        D: np.ndarray = np.array(self._flat).reshape(4, 4)
         if dt == 0.0:
             return D
         F = np.eye(4)
@@ -68,9 +67,8 @@ class CurrentConsider:
             D = A @ D @ A.T
         if not np.isfinite(D).all():
             return
-        self.D = 0.5 * (D + D.T)
         self.t = t
-        self._flat = self.D.ravel().tolist()
+        self._flat = (0.5 * (D + D.T)).ravel().tolist()
 
     def position(self, t: float) -> tuple[float, float, float]:
         """The extra (var_n, var_e, cov_ne) at ``t``, m^2: ``_moved``'s position block in

@@ -71,8 +71,6 @@ class RangeEKF(RangeFusion):
         self.initialised = True
         self.t = t
         self.t_anchor = t
-        if self.consider is not None:
-            self.consider.reset(t)
         self._forget_ranges()  # ranges from before would not chain to this state
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
@@ -81,8 +79,6 @@ class RangeEKF(RangeFusion):
         self.x, self.P = x.copy(), P.copy()
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
-        if self.consider is not None:
-            self.consider.reset(self.t)
         self._forget_ranges()
         self.history.correct(self.x.copy(), self.P.copy())
 
@@ -100,8 +96,6 @@ class RangeEKF(RangeFusion):
         self._apply(K @ np.array([n, e]), hd)
         self._limit_current()
         self.t_anchor = self.t
-        if self.consider is not None:
-            self.consider.reset(self.t)
         self._forget_ranges()
         self.history.correct(self.x.copy(), self.P.copy())
 
@@ -137,12 +131,14 @@ class RangeEKF(RangeFusion):
         return StateEstimate(lat, lon, cn, ce, pnn, pee, pne)
 
     def estimate(self) -> StateEstimate:
+        est = self.estimate_of(self.x, self.P)
         if self.consider is None:
-            return self.estimate_of(self.x, self.P)
-        lat, lon, cn, ce = self.x[:4].tolist()
-        (pnn, pne), (_, pee) = self.P[:2, :2].tolist()
+            return est
         dnn, dee, dne = self.consider.position(self.t)
-        return StateEstimate(lat, lon, cn, ce, pnn + dnn, pee + dee, pne + dne)
+        return StateEstimate(
+            est.lat, est.lon, est.current_n, est.current_e,
+            est.var_n + dnn, est.var_e + dee, est.cov_ne + dne,
+        )  # fmt: skip
 
     def apply_fix(self, fix: Fix) -> None:
         """Ranges reach this mode one by one; the net's fix only starts it without GPS."""

@@ -83,7 +83,9 @@ class RangeFusion(EkfCore):
 
     def _forget_ranges(self) -> None:
         """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
-        it does not."""
+        it does not, and the consider's error (navd/filter/consider.py) starts again."""
+        if self.consider is not None:
+            self.consider.reset(self.t)
         self._recent.clear()
         self._nis.clear()
         self._window.clear()
@@ -393,8 +395,6 @@ class RangeFusion(EkfCore):
         self._limit_current()
         self._forget_ranges()
         self.t_anchor = m.t
-        if self.consider is not None:
-            self.consider.reset(self.t)
         self.reacquisitions += 1
         self.history.correct(self.x.copy(), self.P.copy())
         return True
