@@ -3,7 +3,9 @@
 One fixed draw of sensor errors can favour dead reckoning or flatter the filter
 (BENCHMARKS.md, sensitivity), so every mission here draws its own: outlier rate
 and length, drops in bursts, corrupted beacon positions, compass bias, RPM-map
-error, current (often across the track and more than half the vehicle's speed),
+error, the water's temperature as the crew measured it at the surface against the
+column's mean (so its sound speed), current (often across the track and more than
+half the vehicle's speed),
 a boat anchored, drifting or motoring, a beacon 50 m to 2 km away, 10 to 60
 minutes, and the single moving beacon or 2- and 3-transponder LBL.  Each mission is
 first drawn into a class (``CLASSES``): the base draw above, or priors 3 to 10 times
@@ -61,6 +63,8 @@ CLASSES: dict[str, int] = {
 _CURRENT_MAX_MPS = 1.0
 _BIAS_MAX_DEG = 6.0
 _RPM_ERR_MAX = 0.12
+# how far the crew's surface temperature is from the water column's mean (C, uniform)
+_TEMPERATURE_ERR_MAX_C = 3.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -192,6 +196,10 @@ def draw(seed: int) -> Draw:
         },
         "config": {"navigation": navigation},
     }
+    # from its own generator, so that every other draw of a seed stays what it was
+    t_err = random.Random(f"sound-{seed}").uniform(-1.0, 1.0) * _TEMPERATURE_ERR_MAX_C
+    t_crew = sc["acoustics"]["temperature_c"] + t_err
+    navigation["sound_speed"] = {"temperature_c": round(t_crew, 1)}
     dist = rng.uniform(50.0, 2000.0)
     if cls == "short-near":
         dist = rng.uniform(20.0, 300.0)

@@ -43,6 +43,9 @@ class SoundSpeedConfig:
     salinity_ppt: float = _num(0.2, lo=0.0, hi=50.0)
     fixed_mps: float = _num(1500.0, lo=1300.0, hi=1700.0)
     modem_mps: float = _num(1500.0, lo=1300.0, hi=1700.0)
+    # how far the water column's mean sound speed may be from the one configured (one
+    # sigma): a surface temperature 1.7 C off the column's mean is about 5 m/s
+    std_mps: float = _num(5.0, lo=0.0, hi=100.0)
 
     def model_obj(self) -> SoundSpeed:
         return SoundSpeed(

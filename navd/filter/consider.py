@@ -82,3 +82,69 @@ class CurrentConsider:
             d[5] + 2.0 * dt * d[7] + dt2 * d[15] + walk,
             d[1] + dt * (d[3] + d[6]) + dt2 * d[11],
         )
+
+
+class RangeScaleConsider:
+    """What an error in the configured sound speed adds to the position's uncertainty.
+
+    Every range is the round trip times the configured sound speed, so a water column
+    whose mean speed differs by a fraction ``s`` makes every range ``r s`` too short or
+    too long: a scale error common to all replies, not noise that averages away (seed
+    000, 3.1.1; seed 004 calls it the measurement's scale factor error).  The filter has no
+    state for it.  As for the current above, ``psi`` follows what a unit ``s`` does to the
+    filter's error through its own transitions and gains (Bar-Shalom, Li and Kirubarajan
+    2001, 5.6): ``psi <- (I - K H) psi - K h_s`` at a range, ``h_s = -r`` the range's
+    derivative in ``s``, and ``(I - K H) psi`` at a GPS fix, which ``s`` does not touch.
+    ``psi psi' var(s)`` is then added to the published covariance.  Position and current
+    only, as for the current's consider.
+    """
+
+    def __init__(self, rel_std: float) -> None:
+        """``rel_std``: the sound speed's one-sigma error over the sound speed."""
+        self.var = max(0.0, rel_std) ** 2 if math.isfinite(rel_std) else 0.0
+        self.t = 0.0
+        self._psi = [0.0, 0.0, 0.0, 0.0]  # (dn, de, dc_n, dc_e) per unit s
+
+    def reset(self, t: float) -> None:
+        """A position and current set without ranges to this error (a start, a restart)."""
+        self.t = t
+        self._psi = [0.0, 0.0, 0.0, 0.0]
+
+    def _moved(self, t: float) -> np.ndarray:
+        dt = max(0.0, t - self.t)
+        pn, pe, cn, ce = self._psi
+        return np.array([pn + dt * cn, pe + dt * ce, cn, ce])
+
+    def _set(self, t: float, psi: np.ndarray) -> None:
+        if np.isfinite(psi).all():
+            self.t = t
+            self._psi = psi.tolist()
+
+    def ranged(self, t: float, K: np.ndarray, H: np.ndarray, range_m: float) -> None:
+        """A range of ``range_m`` fused with gain ``K`` and Jacobian ``H`` (the filter's)."""
+        if not (math.isfinite(t) and math.isfinite(range_m)):
+            return
+        if not (np.isfinite(K[:4]).all() and np.isfinite(H[:4]).all()):
+            return
+        with np.errstate(over="ignore", invalid="ignore"):
+            psi = self._moved(t)
+            psi = psi - K[:4] * float(H[:4] @ psi) + K[:4] * range_m
+        self._set(t, psi)
+
+    def fixed(self, t: float, K: np.ndarray, H: np.ndarray) -> None:
+        """A GPS fix fused with gain ``K`` (states x 2) and Jacobian ``H`` (2 x states)."""
+        if not (math.isfinite(t) and np.isfinite(K[:4]).all() and np.isfinite(H[:, :4]).all()):
+            return
+        with np.errstate(over="ignore", invalid="ignore"):
+            psi = self._moved(t)
+            psi = psi - K[:4] @ (H[:, :4] @ psi)
+        self._set(t, psi)
+
+    def position(self, t: float) -> tuple[float, float, float]:
+        """The extra (var_n, var_e, cov_ne) at ``t``, m^2."""
+        dt = max(0.0, t - self.t)
+        pn, pe, cn, ce = self._psi
+        pn += dt * cn
+        pe += dt * ce
+        v = self.var
+        return v * pn * pn, v * pe * pe, v * pn * pe

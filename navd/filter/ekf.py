@@ -50,6 +50,7 @@ class RangeEKF(RangeFusion):
             self.reacquire_after,
             self.max_current,
             self.relinearise_ranges,
+            self.sound_speed_rel_std,
         )
 
     # -- initialisation and GPS -------------------------------------------------------
@@ -96,7 +97,9 @@ class RangeEKF(RangeFusion):
         self._apply(K @ np.array([n, e]), hd)
         self._limit_current()
         self.t_anchor = self.t
-        self._forget_ranges()
+        if self.scale is not None:
+            self.scale.fixed(self.t, K, H)
+        self._forget_ranges(scale_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 
     # -- prediction --------------------------------------------------------------------
@@ -132,9 +135,13 @@ class RangeEKF(RangeFusion):
 
     def estimate(self) -> StateEstimate:
         est = self.estimate_of(self.x, self.P)
-        if self.consider is None:
+        dnn = dee = dne = 0.0
+        for c in (self.consider, self.scale):
+            if c is not None:
+                nn, ee, ne = c.position(self.t)
+                dnn, dee, dne = dnn + nn, dee + ee, dne + ne
+        if self.consider is None and self.scale is None:
             return est
-        dnn, dee, dne = self.consider.position(self.t)
         return StateEstimate(
             est.lat, est.lon, est.current_n, est.current_e,
             est.var_n + dnn, est.var_e + dee, est.cov_ne + dne,

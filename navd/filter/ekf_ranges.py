@@ -36,6 +36,7 @@ import numpy as np
 from navd import geodesy
 from navd.filter import reacquire, relinearise
 from navd.filter.common import GateDecision, RangeMeas, joseph_update
+from navd.filter.consider import RangeScaleConsider
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
 from navd.filter.relinearise import LineOfSight
@@ -59,10 +60,15 @@ class RangeFusion(EkfCore):
         reacquire_after: int,
         max_current_mps: float = 2.0,
         relinearise_ranges: int = _RELIN_RANGES,
+        sound_speed_rel_std: float = 0.0,
     ) -> None:
         """``relinearise_ranges``: the accepted ranges solved again together after each
-        (1: none, the plain EKF)."""
+        (1: none, the plain EKF); ``sound_speed_rel_std``: the configured sound speed's
+        one-sigma error as a fraction of it (0: none allowed for)."""
         super().__init__(noise, max_current_mps)
+        self.sound_speed_rel_std = sound_speed_rel_std
+        if sound_speed_rel_std > 0.0:
+            self.scale = RangeScaleConsider(sound_speed_rel_std)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -81,11 +87,14 @@ class RangeFusion(EkfCore):
         self._steps: deque[relinearise.Step] = deque(maxlen=self.relinearise_ranges)
         self.relinearised = 0  # ranges after which the window was solved again
 
-    def _forget_ranges(self) -> None:
+    def _forget_ranges(self, scale_too: bool = True) -> None:
         """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
-        it does not, and the consider's error (navd/filter/consider.py) starts again."""
+        it does not, and the considers' errors (navd/filter/consider.py) start again;
+        but for the sound speed's after a GPS fix, which carries it through its gains."""
         if self.consider is not None:
             self.consider.reset(self.t)
+        if scale_too and self.scale is not None:
+            self.scale.reset(self.t)
         self._recent.clear()
         self._nis.clear()
         self._window.clear()
@@ -249,6 +258,8 @@ class RangeFusion(EkfCore):
         K, self.P, _ = joseph_update(self.P, H, r_var)
         if self.consider is not None:
             self.consider.update(self.t, K, H)
+        if self.scale is not None:
+            self.scale.ranged(self.t, K, H, expected)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)

@@ -42,9 +42,13 @@ def make_filter(cfg: Config) -> NavFilter:
             nz.thesis_current_walk_mps_per_sqrt_s,
         )
     g = nav.gate
+    sound = nav.sound_speed
     return CalibrationBank(
-        RangeEKF(nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps)
-    )
+        RangeEKF(
+            nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps,
+            sound_speed_rel_std=sound.std_mps / sound.model_obj().at(0.0),
+        )
+    )  # fmt: skip
 
 
 class NavParts:

@@ -6,10 +6,11 @@ Gaussian process and measurement noise, the information recursion is the Kalman
 covariance recursion with every Jacobian taken at the true state.  That is what this
 module runs, over the simulator's truth, with the simulator's own noise:
 
-* states: position north/east, current north/east, heading bias, speed scale, and
-  for each beacon the error of the position it reports (the boat's GPS, a
-  first-order Gauss-Markov process with the boat's ``gps_std_m`` and
-  ``gps_corr_s``; a transponder's survey error, constant with ``survey_std_m``);
+* states: position north/east, current north/east, heading bias, speed scale, the
+  relative error of the crew's sound speed (every range's scale), and for each beacon
+  the error of the position it reports (the boat's GPS, a first-order Gauss-Markov
+  process with the boat's ``gps_std_m`` and ``gps_corr_s``; a transponder's survey
+  error, constant with ``survey_std_m``);
 * process noise: the compass and RPM noise of each sample (white at the sensor
   rate), and for the current a random walk as fast as the truth's current changes
   (its rate of change squared times ``CURRENT_MEMORY_S``: a tidal stream is not
@@ -48,6 +49,8 @@ _SUBMERGED_DEPTH_M = 0.3
 _FLOOR_CURRENT_MPS = 0.02
 _FLOOR_BIAS_DEG = 0.5
 _FLOOR_SCALE = 0.01
+_FLOOR_SOUND = 0.001  # 1.5 m/s: a sound speed from a CTD cast
+_SOUND = 6  # the sound speed's state; the beacons' follow
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,17 +82,26 @@ def _prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarray:
     c_true = math.hypot(tr[0].current_n, tr[0].current_e) / math.sqrt(2.0)
     bias_true = math.radians(abs(s.compass_bias_deg) + sum(abs(x) for x in s.compass_deviation_deg))
     scale_true = abs(cfg.navigation.speed.rpm_per_mps / s.rpm_per_mps - 1.0)
-    n_states = 6 + 2 * len(col)
+    n_states = _SOUND + 1 + 2 * len(col)
     P = np.zeros((n_states, n_states))
     P[0, 0] = P[1, 1] = 1e8
     P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
     P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
     P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
+    P[_SOUND, _SOUND] = max(_FLOOR_SOUND, abs(sound_error(m, cfg))) ** 2
     fixed = sc.acoustics.transponders
     for name, k in col.items():
         std = next((tp.survey_std_m for tp in fixed if tp.name == name), sc.boat.gps_std_m)
         P[k, k] = P[k + 1, k + 1] = max(std, 1e-3) ** 2
     return P
+
+
+def sound_error(m: Mission, cfg: Config) -> float:
+    """The water's sound speed over the one the crew's config gives, less one: each range
+    navd computes is the true one over (1 + this)."""
+    sc = m.scenario
+    depth = 0.5 * (sc.vehicle.depth_m + sc.boat.transducer_depth_m)
+    return m.channel.c_water / cfg.navigation.sound_speed.model_obj().at(depth) - 1.0
 
 
 def _range_var(m: Mission) -> float:
@@ -130,7 +142,9 @@ def matched_config(m: Mission, cfg: Config) -> dict[str, object]:
         "speed_scale_walk_per_sqrt_s": 0.0,
         "gps_std_m": max(s.gps_std_m, 0.1),
     }
-    out: dict[str, object] = {"navigation": {"noise": noise}}
+    c_crew = cfg.navigation.sound_speed.model_obj().at(0.0)
+    sound = {"std_mps": math.sqrt(P[_SOUND, _SOUND]) * c_crew}
+    out: dict[str, object] = {"navigation": {"noise": noise, "sound_speed": sound}}
     if not sc.acoustics.transponders:
         b = sc.boat
         out["beacons"] = {"udb": {"position_std_m": b.gps_std_m, "position_corr_s": b.gps_corr_s}}
@@ -167,8 +181,8 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
     where: dict[str, tuple[float, float, float]] = {}
     for tp in fixed:
         where[tp.name] = (tp.north_m, tp.east_m, tp.depth_m)
-    n_states = 6 + 2 * len(names)
-    col = {name: 6 + 2 * k for k, name in enumerate(names)}
+    n_states = _SOUND + 1 + 2 * len(names)
+    col = {name: _SOUND + 1 + 2 * k for k, name in enumerate(names)}
 
     P = _prior(m, cfg, col)
     b = sc.boat
@@ -217,6 +231,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
                 h[0], h[1] = dn / slant, de / slant
                 k = col[str(arg)]
                 h[k], h[k + 1] = -h[0], -h[1]
+                h[_SOUND] = -slant  # the range navd computes, over its sound speed's error
                 Ph = P @ h
                 P = P - np.outer(Ph, Ph) / (float(h @ Ph) + r_var)
                 used += 1
