@@ -73,6 +73,8 @@ class RangeEKF(RangeFusion):
         self.t = t
         self.t_anchor = t
         self._forget_ranges()  # ranges from before would not chain to this state
+        if self.scale is not None:
+            self.scale.restart(t)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
@@ -81,6 +83,8 @@ class RangeEKF(RangeFusion):
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
+        if self.scale is not None:
+            self.scale.restart(self.t)  # a checkpoint holds no scale: back to its prior
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
@@ -94,11 +98,15 @@ class RangeEKF(RangeFusion):
         IKH = np.eye(N_STATES) - K @ H
         P = IKH @ self.P @ IKH.T + K @ R @ K.T
         self.P = 0.5 * (P + P.T)
-        self._apply(K @ np.array([n, e]), hd)
+        residual = np.array([n, e])
+        self._apply(K @ residual, hd)
         self._limit_current()
         self.t_anchor = self.t
         if self.scale is not None:
-            self.scale.fixed(self.t, K, H)
+            dx = np.zeros(N_STATES)
+            dx[:4] = self.scale.fixed(self.t, K, H, residual, S)
+            self._apply(dx, hd)
+            self._limit_current()
         self._forget_ranges(scale_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 
@@ -135,13 +143,13 @@ class RangeEKF(RangeFusion):
 
     def estimate(self) -> StateEstimate:
         est = self.estimate_of(self.x, self.P)
+        if self.consider is None and self.scale is None:
+            return est
         dnn = dee = dne = 0.0
         for c in (self.consider, self.scale):
             if c is not None:
                 nn, ee, ne = c.position(self.t)
                 dnn, dee, dne = dnn + nn, dee + ee, dne + ne
-        if self.consider is None and self.scale is None:
-            return est
         return StateEstimate(
             est.lat, est.lon, est.current_n, est.current_e,
             est.var_n + dnn, est.var_e + dee, est.cov_ne + dne,

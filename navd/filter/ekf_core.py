@@ -18,8 +18,9 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter.common import History
-from navd.filter.consider import CurrentConsider, RangeScaleConsider
+from navd.filter.consider import CurrentConsider
 from navd.filter.ekf_step import Noise
+from navd.filter.range_scale import RangeScale
 from navd.filter.track import RecentTrack
 from navd.settings import NoiseConfig
 
@@ -48,8 +49,9 @@ class EkfCore:
         # what a faster-changing current would add to the published covariance (none
         # unless the owner sets one: navd/filter/bank.py's uncalibrated belief)
         self.consider: CurrentConsider | None = None
-        # what an error in the configured sound speed adds to it (navd/filter/consider.py)
-        self.scale: RangeScaleConsider | None = None
+        # the ranges' common scale error, from the configured sound speed's
+        # (navd/filter/range_scale.py): estimated beside the filter, none if not allowed for
+        self.scale: RangeScale | None = None
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
         # how the water-relative velocity (north, east) moves with heading bias and speed

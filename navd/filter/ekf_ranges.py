@@ -30,15 +30,16 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
 from navd import geodesy
 from navd.filter import reacquire, relinearise
 from navd.filter.common import GateDecision, RangeMeas, joseph_update
-from navd.filter.consider import RangeScaleConsider
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
+from navd.filter.range_scale import RangeScale
 from navd.filter.relinearise import LineOfSight
 from navd.settings import NoiseConfig
 
@@ -68,7 +69,7 @@ class RangeFusion(EkfCore):
         super().__init__(noise, max_current_mps)
         self.sound_speed_rel_std = sound_speed_rel_std
         if sound_speed_rel_std > 0.0:
-            self.scale = RangeScaleConsider(sound_speed_rel_std)
+            self.scale = RangeScale(sound_speed_rel_std)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -89,8 +90,9 @@ class RangeFusion(EkfCore):
 
     def _forget_ranges(self, scale_too: bool = True) -> None:
         """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
-        it does not, and the considers' errors (navd/filter/consider.py) start again;
-        but for the sound speed's after a GPS fix, which carries it through its gains."""
+        it does not, and the considers' errors (navd/filter/consider.py) start again, as
+        does what the range scale did to the estimate (navd/filter/range_scale.py); but
+        not after a GPS fix, which carries that through its gains."""
         if self.consider is not None:
             self.consider.reset(self.t)
         if scale_too and self.scale is not None:
@@ -211,6 +213,8 @@ class RangeFusion(EkfCore):
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
+        if self.scale is not None:
+            m = replace(m, range_m=self.scale.corrected(m.range_m))
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
         r_var = m.std_m**2
@@ -224,6 +228,10 @@ class RangeFusion(EkfCore):
         r_var += var2
         residual = m.range_m - expected
         S = float(H @ self.P @ H) + r_var
+        # the gate, the weights and the NIS see the scale's uncertainty as well, which
+        # the filter's own covariance does not hold
+        scale_var = 0.0 if self.scale is None else self.scale.spread(self.t, H, expected)
+        S += scale_var
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
         self.last_s = S
@@ -258,16 +266,29 @@ class RangeFusion(EkfCore):
         K, self.P, _ = joseph_update(self.P, H, r_var)
         if self.consider is not None:
             self.consider.update(self.t, K, H)
+        shift = None
         if self.scale is not None:
-            self.scale.ranged(self.t, K, H, expected)
+            shift = self.scale.ranged(self.t, K, H, expected, residual, S - scale_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
+        if shift is not None:
+            self._shift(shift, m.vehicle_hd)
         if untracked:
             self._floor_along_sight(H, m.beacon_position_std_m)
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return GateDecision(True, residual, gate_m, "ok")
+
+    def _shift(self, shift: np.ndarray, hd: float) -> None:
+        """Move position and current by what the range scale just learnt did to them
+        (navd/filter/range_scale.py); the relinearised window's last state with them."""
+        dx = np.zeros(N_STATES)
+        dx[:4] = shift
+        self._apply(dx, hd)
+        self._limit_current()
+        if self._steps:
+            self._steps[-1].x_post = self.x.copy()
 
     def _relinearise(
         self,
