@@ -227,11 +227,12 @@ class RangeFusion(EkfCore):
         expected += bias
         r_var += var2
         residual = m.range_m - expected
-        S = float(H @ self.P @ H) + r_var
+        hph = float(H @ self.P @ H)
+        S = hph + r_var
         # the gate, the weights and the NIS see the scale's uncertainty as well, which
         # the filter's own covariance does not hold
-        scale_var = 0.0 if self.scale is None else self.scale.spread(self.t, H, expected)
-        S += scale_var
+        if self.scale is not None:
+            S += self.scale.spread(self.t, H, expected)
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
         self.last_s = S
@@ -268,7 +269,8 @@ class RangeFusion(EkfCore):
             self.consider.update(self.t, K, H)
         shift = None
         if self.scale is not None:
-            shift = self.scale.ranged(self.t, K, H, expected, residual, S - scale_var)
+            # the residual's variance to the filter, with the weight it was fused with
+            shift = self.scale.ranged(self.t, K, H, expected, residual, hph + r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
