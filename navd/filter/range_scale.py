@@ -117,7 +117,7 @@ class RangeScale:
         if not (np.isfinite(shift).all() and math.isfinite(m) and m >= 0.0):
             return np.zeros(4)
         if not 1.0 + self.s + delta > 0.5:
-            return np.zeros(4)  # no water halves or doubles a sound speed
+            return np.zeros(4)  # no water halves a sound speed: a broken step, not a scale
         self.t = t
         self._psi = psi.tolist()
         self.s += delta
