@@ -3,6 +3,7 @@ from __future__ import annotations
 import functools
 import os
 
+import numpy as np
 from hypothesis import settings
 
 from navd.hil.scenario import load_scenario
@@ -20,3 +21,16 @@ settings.load_profile(os.environ.get("NAVD_HYPOTHESIS", "repeatable"))
 def mission(name: str, seed: int) -> Mission:
     """Simulated missions are deterministic; share them between tests."""
     return simulate(load_scenario(name), seed)
+
+
+def current_walk(dt: float, q2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position and current (north, east, current north, current east) over ``dt``: the
+    transition, and the noise of a current walking at ``q2`` (m/s)^2/s, integrated."""
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    Q = np.zeros((4, 4))
+    for i in (0, 1):
+        Q[i, i] = q2 * dt**3 / 3.0
+        Q[i, i + 2] = Q[i + 2, i] = q2 * dt**2 / 2.0
+        Q[i + 2, i + 2] = q2 * dt
+    return F, Q

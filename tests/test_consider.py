@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from conftest import current_walk
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -10,13 +11,7 @@ from navd.filter.consider import CurrentConsider
 
 
 def _propagate(P: np.ndarray, dt: float, q2: float) -> np.ndarray:
-    F = np.eye(4)
-    F[0, 2] = F[1, 3] = dt
-    Q = np.zeros((4, 4))
-    for i in (0, 1):
-        Q[i, i] = q2 * dt**3 / 3.0
-        Q[i, i + 2] = Q[i + 2, i] = q2 * dt**2 / 2.0
-        Q[i + 2, i + 2] = q2 * dt
+    F, Q = current_walk(dt, q2)
     return F @ P @ F.T + Q
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from conftest import current_walk
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -43,13 +44,7 @@ def test_fed_back_it_is_the_filter_augmented_with_the_scale() -> None:
     for i in range(80):
         dt = float(rng.uniform(2.0, 30.0))
         t += dt
-        F = np.eye(4)
-        F[0, 2] = F[1, 3] = dt
-        Q = np.zeros((4, 4))
-        for j in (0, 1):
-            Q[j, j] = q2 * dt**3 / 3.0
-            Q[j, j + 2] = Q[j + 2, j] = q2 * dt**2 / 2.0
-            Q[j + 2, j + 2] = q2 * dt
+        F, Q = current_walk(dt, q2)
         x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
         y, P = F @ y, F @ P @ F.T + Q
         Fa = np.eye(5)

@@ -103,10 +103,7 @@ class RangeEKF(RangeFusion):
         self._limit_current()
         self.t_anchor = self.t
         if self.scale is not None:
-            dx = np.zeros(N_STATES)
-            dx[:4] = self.scale.fixed(self.t, K, H, residual, S)
-            self._apply(dx, hd)
-            self._limit_current()
+            self._shift(self.scale.fixed(self.t, K, H, residual, S), hd)
         self._forget_ranges(scale_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 

@@ -125,7 +125,8 @@ class RangeScale:
         return shift
 
     def position(self, t: float) -> tuple[float, float, float]:
-        """What the scale's remaining uncertainty adds to (var_n, var_e, cov_ne), m^2."""
+        """What the scale's remaining uncertainty adds to (var_n, var_e, cov_ne), m^2:
+        ``_moved``'s position in scalars, since an estimate asks for it at every tick."""
         dt = max(0.0, t - self.t)
         pn, pe, cn, ce = self._psi
         pn += dt * cn
