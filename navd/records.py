@@ -152,6 +152,10 @@ class Resume:
     surface_bar: float | None = None  # the depth gauge's zero
     surface_alt: float | None = None  # the water's ellipsoidal height
     depth_m: float | None = None  # the depth then: the vehicle is submerged until it says not
+    # the ranges' common scale error as learnt, and its variance (navd/filter/range_scale.py);
+    # ``P`` holds what that variance did to the position already
+    range_scale: float | None = None
+    range_scale_var: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -238,6 +242,8 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (Resume, "surface_bar"): (0.0, 2000.0),
     (Resume, "surface_alt"): (-1000.0, 10_000.0),
     (Resume, "depth_m"): (-100.0, 11_000.0),
+    (Resume, "range_scale"): (-0.5, 0.5),
+    (Resume, "range_scale_var"): (0.0, 1.0),
 }
 #: a time stamp beyond about 30 years of seconds is corrupt, not a mission
 MAX_ABS_T = 1e9

@@ -4,24 +4,31 @@ transponder net the scale learnt and the position kept."""
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import replace
 
 import numpy as np
+import pytest
 from conftest import current_walk
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from navd import geodesy
 from navd.analysis.score import TruthAt
+from navd.daemon.checkpoint import resume_record
 from navd.filter.navigator import Navigator
 from navd.filter.navparts import make_filter
 from navd.filter.range_scale import RangeScale
+from navd.formats import jsonlines
+from navd.formats.mlog import parse_record, record_to_json
 from navd.hil.bound import sound_error
 from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import crew_config
-from navd.hil.world import simulate
+from navd.hil.world import Mission, simulate
+from navd.records import Resume
 from navd.schema import Estimate
-from navd.settings import config_from_dict, deep_merge
+from navd.settings import Config, config_from_dict, deep_merge
 
 
 def test_fed_back_it_is_the_filter_augmented_with_the_scale() -> None:
@@ -102,9 +109,8 @@ def test_fed_back_it_is_the_filter_augmented_with_the_scale() -> None:
     assert scale.m < 0.5 * rel**2  # the ranges taught it something
 
 
-def _lbl3(std_mps: float, temperature_off_c: float) -> tuple[list[float], float, float, float]:
-    """lbl-3 with the crew's surface temperature off: the submerged errors (m), the range
-    scale's truth, and the followed filter's estimate and std of it at the end."""
+def _lbl3_mission(std_mps: float, temperature_off_c: float) -> tuple[Mission, Config]:
+    """lbl-3, and its crew's config with the surface temperature off."""
     sc = load_scenario("lbl-3")
     m = simulate(sc, 2)
     crew = crew_config(sc)
@@ -116,11 +122,16 @@ def _lbl3(std_mps: float, temperature_off_c: float) -> tuple[list[float], float,
             "std_mps": std_mps,
         }}},
     )  # fmt: skip
-    cfg = config_from_dict(crew)
+    return m, config_from_dict(crew)
+
+
+def _errors(nav: Navigator, m: Mission, after: float = -math.inf) -> list[float]:
+    """The submerged errors (m) of ``nav`` fed ``m``'s records after ``after``."""
     truth = TruthAt(m.truth)
-    nav = Navigator(cfg)
     errors = []
     for rec in m.records:
+        if rec.t <= after:
+            continue
         for o in nav.feed(rec):
             tr = truth(o.t) if isinstance(o, Estimate) else None
             if tr is None or tr.depth < 1.0:
@@ -130,6 +141,15 @@ def _lbl3(std_mps: float, temperature_off_c: float) -> tuple[list[float], float,
                 math.radians(o.lat), math.radians(o.lon),
             )  # fmt: skip
             errors.append(math.hypot(n, e))
+    return errors
+
+
+def _lbl3(std_mps: float, temperature_off_c: float) -> tuple[list[float], float, float, float]:
+    """lbl-3 with the crew's surface temperature off: the submerged errors (m), the range
+    scale's truth, and the followed filter's estimate and std of it at the end."""
+    m, cfg = _lbl3_mission(std_mps, temperature_off_c)
+    nav = Navigator(cfg)
+    errors = _errors(nav, m)
     sc_ = nav.filter.followed.scale  # type: ignore[attr-defined]
     s, std = (0.0, 0.0) if sc_ is None else (sc_.s, math.sqrt(sc_.m))
     # each range navd computes is the true one over (1 + sound_error)
@@ -157,6 +177,61 @@ def test_a_crew_that_got_it_right_loses_nothing() -> None:
     assert truth == 0.0 and abs(s) < 0.002
     without, _, _, _ = _lbl3(0.0, 0.0)
     assert _rms(errors) < 1.1 * _rms(without)
+
+
+def test_a_restart_underwater_goes_on_with_the_scale_as_learnt() -> None:
+    """navd killed mid-mission on lbl-3 with the crew 4 C warm, and restarted 5 s later
+    from its checkpoint: the checkpoint (through the log's ``cmd_resume`` line) holds the
+    scale, the resumed filter ranges with it, and the rest of the mission is closer than
+    a restart that forgot it (measured 1.37 m against 1.96 m)."""
+    m, cfg = _lbl3_mission(5.0, 4.0)
+    t_kill, age = 400.0, 5.0
+    before = Navigator(cfg)
+    for rec in m.records:
+        if rec.t > t_kill:
+            break
+        before.feed(rec)
+    snap = before.snapshot()
+    assert snap is not None
+    learnt = before.filter.followed.scale  # type: ignore[attr-defined]
+    assert snap["range_scale"] == learnt.s and snap["range_scale_var"] == learnt.m
+    assert abs(learnt.s) > 0.005  # there is something to keep
+    rec = resume_record({**snap, "age_s": age}, t_kill + age)
+    assert isinstance(rec, Resume)
+    logged = parse_record(json.loads(jsonlines.dumps_line(record_to_json(rec))))
+    assert logged == rec
+    rests = {}
+    for label, r in (("held", logged), ("forgotten", replace(logged, range_scale=None))):
+        nav = Navigator(cfg)
+        nav.feed(r)
+        assert nav.counters["resumed"] == 1
+        resumed = nav.filter.followed.scale  # type: ignore[attr-defined]
+        assert resumed.s == (learnt.s if label == "held" else 0.0)
+        rests[label] = _rms(_errors(nav, m, t_kill + age))
+    assert rests["held"] < 0.85 * rests["forgotten"]
+
+
+def test_a_checkpoint_claims_no_more_than_the_filter_knew() -> None:
+    """The scale's share of the position's uncertainty goes into the checkpoint's
+    covariance, since the resumed filter starts its sensitivity to the scale afresh; a
+    held scale that cannot be one leaves the prior."""
+    c = RangeScale(0.003)
+    c.restart(0.0)
+    H = np.zeros(8)
+    H[0] = 1.0
+    K = np.zeros(8)
+    K[0], K[2] = 0.5, 0.001
+    c.ranged(10.0, K, H, 800.0, 2.0, 9.0)
+    s, m, added = c.held(70.0)
+    psi = c._moved(70.0)
+    assert m < 0.003**2 and np.allclose(added, m * np.outer(psi, psi))
+    assert added[0, 0] > 0.0 and added[0, 0] == pytest.approx(c.position(70.0)[0])
+    fresh = RangeScale(0.003)
+    assert fresh.resume(80.0, s, m) and (fresh.s, fresh.m) == (s, m)
+    assert fresh.position(90.0) == (0.0, 0.0, 0.0)  # its share is in the covariance now
+    for bad in ((math.nan, m), (s, -1.0), (-0.7, m), (s, math.inf)):
+        assert not fresh.resume(80.0, *bad) and (fresh.s, fresh.m) == (0.0, 0.003**2)
+    assert fresh.resume(80.0, s, 1.0) and fresh.m == 0.003**2  # never surer of nothing
 
 
 def test_the_configured_sound_speed_error_reaches_both_beliefs_and_zero_turns_it_off() -> None:

@@ -157,6 +157,8 @@ def resume_record(snap: JsonObject, t: float) -> Resume | str:
             number_or_none(snap.get("surface_bar")),
             number_or_none(snap.get("surface_alt")),
             number_or_none(snap.get("depth_m")),
+            number_or_none(snap.get("range_scale")),
+            number_or_none(snap.get("range_scale_var")),
         )
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"

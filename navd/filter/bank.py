@@ -49,7 +49,14 @@ from dataclasses import replace
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.common import (
+    Corrections,
+    GateDecision,
+    HeldScale,
+    History,
+    RangeMeas,
+    StateEstimate,
+)
 from navd.filter.consider import CurrentConsider
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import chi2_quantile
@@ -186,10 +193,16 @@ class CalibrationBank:
         self.refuted = False
         self._t0 = t
 
-    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+        return self.followed.checkpoint()
+
+    def restore(
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+    ) -> None:
         """A checkpoint: the config filter's state; the uncalibrated belief the same, its
-        calibration's covariance scaled as its priors are to the config's."""
-        self.config.restore(x, P, grow_m2)
+        calibration's covariance scaled as its priors are to the config's (the range
+        scale both believe alike)."""
+        self.config.restore(x, P, grow_m2, scale)
         a, b = self.config.noise, self.uncal.noise
         k = np.ones(len(x))
         k[2:6] = (
@@ -198,7 +211,7 @@ class CalibrationBank:
             b.heading_bias_init_std_deg / a.heading_bias_init_std_deg,
             b.speed_scale_init_std / a.speed_scale_init_std,
         )
-        self.uncal.restore(x, P * np.outer(k, k), grow_m2)
+        self.uncal.restore(x, P * np.outer(k, k), grow_m2, scale)
         self.w_uncal = _PRIOR
         # a checkpoint of a refuted config's run holds the uncalibrated filter's
         # calibration, and the next update refutes the priors again

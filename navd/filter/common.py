@@ -187,6 +187,11 @@ class Corrections:
     calibration_refuted: bool | None = None
 
 
+#: the ranges' common scale error as a checkpoint holds it (navd/filter/range_scale.py):
+#: its estimate and variance
+HeldScale = tuple[float, float]
+
+
 class NavFilter(Protocol):
     """What the navigator needs of a filter mode.
 
@@ -219,7 +224,14 @@ class NavFilter(Protocol):
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None: ...
 
-    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None: ...
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+        """What a restart resumes from (navd/filter/navresume.py): the state, its
+        covariance, and the ranges' common scale as learnt (None: the mode has none)."""
+
+    def restore(
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+    ) -> None:
+        """Navigate on from ``checkpoint``'s, the position variance grown by ``grow_m2``."""
 
     def range_update(self, m: RangeMeas) -> GateDecision: ...
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter import ekf_step
-from navd.filter.common import Corrections, StateEstimate
+from navd.filter.common import Corrections, HeldScale, StateEstimate
 from navd.filter.ekf_core import CAL_MEAN_S, N_STATES
 from navd.filter.ekf_ranges import RangeFusion
 from navd.filter.lsfix import Fix
@@ -77,14 +77,27 @@ class RangeEKF(RangeFusion):
             self.scale.restart(t)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
-    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
-        """A checkpoint's state (a restart), its position variance grown by ``grow_m2``."""
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+        """The state, and the covariance with what the range scale's uncertainty adds to
+        it folded in: the resumed filter holds no sensitivity to the scale yet."""
+        if self.scale is None:
+            return self.x.copy(), self.P.copy(), None
+        s, m, added = self.scale.held(self.t)
+        P = self.P.copy()
+        P[:4, :4] += added
+        return self.x.copy(), P, (s, m)
+
+    def restore(
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+    ) -> None:
+        """A checkpoint's state (a restart), its position variance grown by ``grow_m2``;
+        the range scale as it held it, or back at its prior if it held none."""
         self.x, self.P = x.copy(), P.copy()
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
-        if self.scale is not None:
-            self.scale.restart(self.t)  # a checkpoint holds no scale: back to its prior
+        if self.scale is not None and (scale is None or not self.scale.resume(self.t, *scale)):
+            self.scale.restart(self.t)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

@@ -14,21 +14,25 @@ from navd.records import Resume
 class Resuming(NavParts):
     def snapshot(self) -> dict[str, object] | None:
         """What a restart needs to resume navigating (None: nothing to resume yet): the
-        filter's state and covariance, the depth gauge's zero, the water's height."""
+        filter's state and covariance, the ranges' scale as learnt, the depth gauge's zero,
+        the water's height."""
         f = self.filter
         if not f.initialised:
             return None
-        x = np.asarray(f.x, dtype=float)
-        return {
+        x, P, scale = f.checkpoint()
+        snap: dict[str, object] = {
             "mode": self.cfg.navigation.filter,
             "x": x.tolist(),
-            "P": np.asarray(f.P, dtype=float).ravel().tolist(),
+            "P": P.ravel().tolist(),
             "surface_bar": self.depth.zero_bar,
             "surface_alt": self.surface_altitude,
             "depth_m": self.depth.m,
             "lat": math.degrees(float(x[0])),
             "lon": math.degrees(float(x[1])),
         }
+        if scale is not None:
+            snap["range_scale"], snap["range_scale_var"] = scale
+        return snap
 
     def _on_resume(self, rec: Resume) -> None:
         """Navigate on from a checkpoint: navd restarted (a crash, the watchdog) while
@@ -51,7 +55,10 @@ class Resuming(NavParts):
             return
         grow = (self.cfg.checkpoint.drift_mps * rec.age_s) ** 2
         self.filter.initialise(float(x[0]), float(x[1]), 1.0, rec.t)
-        self.filter.restore(x, P, grow)
+        held = None
+        if rec.range_scale is not None and rec.range_scale_var is not None:
+            held = (rec.range_scale, rec.range_scale_var)
+        self.filter.restore(x, P, grow, held)
         self._t_filter = rec.t
         self.dr.reset(float(x[0]), float(x[1]))
         if rec.surface_bar is not None:

@@ -50,9 +50,28 @@ class RangeScale:
         self._psi = [0.0, 0.0, 0.0, 0.0]  # (dn, de, dc_n, dc_e) per unit s
 
     def restart(self, t: float) -> None:
-        """A filter started afresh (a start, a restart): the scale back at its prior."""
+        """A filter started afresh (a start, a checkpoint without the scale): the scale
+        back at its prior."""
         self.s, self.m = 0.0, self.var
         self.reset(t)
+
+    def resume(self, t: float, s: float, m: float) -> bool:
+        """A restart from a checkpoint that held the scale as ``s`` of variance ``m``
+        (``held``); False, and the prior kept, if they cannot be a scale's."""
+        if not (math.isfinite(s) and math.isfinite(m) and m >= 0.0 and 1.0 + s > 0.5):
+            self.restart(t)
+            return False
+        self.s, self.m = s, min(m, self.var)
+        self.reset(t)
+        return True
+
+    def held(self, t: float) -> tuple[float, float, np.ndarray]:
+        """What a checkpoint keeps at ``t``: the scale, its variance, and what that
+        variance adds to the filter's covariance of (north, east, current north, current
+        east).  Folded into the checkpoint's covariance, it lets the resumed filter start
+        the sensitivity afresh (``resume``) without claiming more than it knew."""
+        psi = self._moved(t)
+        return self.s, self.m, self.m * np.outer(psi, psi)
 
     def reset(self, t: float) -> None:
         """A position and current set without ranges to this error (a re-acquisition's

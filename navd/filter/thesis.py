@@ -17,7 +17,14 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Corrections, GateDecision, History, RangeMeas, StateEstimate
+from navd.filter.common import (
+    Corrections,
+    GateDecision,
+    HeldScale,
+    History,
+    RangeMeas,
+    StateEstimate,
+)
 from navd.filter.lsfix import Fix
 
 
@@ -146,7 +153,12 @@ class ThesisEKF:
         self.initialised = True
         self.history.add(t, np.eye(4), self.x.copy(), self.P.copy())
 
-    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+        return self.x.copy(), self.P.copy(), None
+
+    def restore(
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+    ) -> None:
         # the thesis' covariance is in radians squared: the growth is converted there
         self.x, self.P = x.copy(), P.copy()
         pn, pe = metres_to_rad2(float(x[0]), grow_m2, grow_m2)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Corrections, GateDecision, RangeMeas, StateEstimate
+from navd.filter.common import Corrections, GateDecision, HeldScale, RangeMeas, StateEstimate
 from navd.filter.lsfix import Fix
 
 
@@ -37,7 +37,12 @@ class VlblMode:
         self.initialised = True
         self.t = t
 
-    def restore(self, x: np.ndarray, P: np.ndarray, grow_m2: float) -> None:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+        return self.x.copy(), self.P.copy(), None
+
+    def restore(
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+    ) -> None:
         self.x, self.P = x.copy(), P + np.eye(2) * grow_m2
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

@@ -155,7 +155,7 @@ def _parse_resume(o: JsonObject, t: float) -> Resume:
         raise _Bad("field 'P' must hold len(x) squared numbers")
     return Resume(
         t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
-        _opt(o, "depth_m"),
+        _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"),
     )
 
 
