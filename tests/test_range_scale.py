@@ -32,80 +32,99 @@ from navd.settings import Config, config_from_dict, deep_merge
 
 
 def test_fed_back_it_is_the_filter_augmented_with_the_scale() -> None:
-    """A linear model of position and current with a walk, ranges ``H x + r s + v`` and GPS
-    fixes that ``s`` does not touch.  The filter with no state for ``s``, the range scale
-    beside it fed back, against the Kalman filter of (x, s): the same estimate of x and of
-    s, the same covariance of position, the same variance of s."""
+    """A linear model of the filter's eight states: position moved by the current, by
+    heading bias and speed scale through the water-relative motion, and a beacon offset
+    that decays; ranges ``H x + r s + v`` and GPS fixes that ``s`` does not touch.  The
+    filter with no state for ``s``, the range scale beside it fed back and carried between
+    updates by the filter's running totals (``path``), against the Kalman filter of
+    (x, s): the same estimate of every state and of s, the same covariance of position,
+    the same variance of s."""
     rng = np.random.default_rng(5)
-    rel = 0.004
-    q2 = 1e-6
+    rel, q2, tau = 0.004, 1e-6, 600.0
+    n = 8
     scale = RangeScale(rel)
-    scale.restart(0.0)
-    y, P = np.zeros(4), np.diag([4.0, 4.0, 0.01, 0.01])  # the filter's own
-    xa, Pa = np.zeros(5), np.zeros((5, 5))  # the augmented filter's (x, s)
-    Pa[:4, :4] = P
-    Pa[4, 4] = rel**2
-    x = rng.multivariate_normal(np.zeros(4), P)  # the truth
+    path = [0.0] * 6
+    scale.restart(path)
+    P = np.diag([4.0, 4.0, 0.01, 0.01, 0.003, 0.002, 9.0, 9.0])  # the filter's own
+    y = np.zeros(n)
+    xa, Pa = np.zeros(n + 1), np.zeros((n + 1, n + 1))  # the augmented filter's (x, s)
+    Pa[:n, :n] = P
+    Pa[n, n] = rel**2
+    x = rng.multivariate_normal(np.zeros(n), P)  # the truth
     s = float(rng.normal(0.0, rel))
-    t = 0.0
     for i in range(80):
         dt = float(rng.uniform(2.0, 30.0))
-        t += dt
-        F, Q = current_walk(dt, q2)
-        x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
+        F, Q = np.eye(n), np.zeros((n, n))
+        F[:4, :4], Q[:4, :4] = current_walk(dt, q2)
+        # the water-relative motion's derivatives in heading bias and speed scale over
+        # the interval, as the filter's steps would sum them
+        J = rng.normal(0.0, 20.0, (2, 2))
+        F[:2, 4:6] = J
+        F[6, 6] = F[7, 7] = math.exp(-dt / tau)
+        Q[6, 6] = Q[7, 7] = 9.0 * (1.0 - F[6, 6] ** 2)
+        path[0] += dt
+        path[1], path[2] = path[1] + J[0, 0], path[2] + J[1, 0]
+        path[3], path[4] = path[3] + J[0, 1], path[4] + J[1, 1]
+        path[5] += dt / tau
+        x = F @ x + rng.multivariate_normal(np.zeros(n), Q)
         y, P = F @ y, F @ P @ F.T + Q
-        Fa = np.eye(5)
-        Fa[:4, :4] = F
-        Qa = np.zeros((5, 5))
-        Qa[:4, :4] = Q
+        Fa, Qa = np.eye(n + 1), np.zeros((n + 1, n + 1))
+        Fa[:n, :n], Qa[:n, :n] = F, Q
         xa, Pa = Fa @ xa, Fa @ Pa @ Fa.T + Qa
         if i % 20 == 19:  # a GPS fix at the surface
-            H2 = np.zeros((2, 8))
+            H2 = np.zeros((2, n))
             H2[0, 0] = H2[1, 1] = 1.0
             R2 = np.eye(2) * 9.0
             z2 = x[:2] + rng.normal(0.0, 3.0, 2)
             nu = z2 - y[:2]
-            S2 = P[:2, :2] + R2
-            K2 = np.zeros((8, 2))
-            K2[:4] = P[:, :2] @ np.linalg.inv(S2)
-            A = np.eye(4) - K2[:4] @ H2[:, :4]
-            y = y + K2[:4] @ nu
-            P = A @ P @ A.T + K2[:4] @ R2 @ K2[:4].T
-            y = y + scale.fixed(t, K2, H2, nu, S2)
-            Ha = np.zeros((2, 5))
-            Ha[0, 0] = Ha[1, 1] = 1.0
+            S2 = H2 @ P @ H2.T + R2
+            K2 = P @ H2.T @ np.linalg.inv(S2)
+            A = np.eye(n) - K2 @ H2
+            y = y + K2 @ nu
+            P = A @ P @ A.T + K2 @ R2 @ K2.T
+            y = y + scale.fixed(path, K2, H2, nu, S2)
+            Ha = np.zeros((2, n + 1))
+            Ha[:, :n] = H2
             Ka = Pa @ Ha.T @ np.linalg.inv(Ha @ Pa @ Ha.T + R2)
             xa = xa + Ka @ (z2 - Ha @ xa)
-            Pa = (np.eye(5) - Ka @ Ha) @ Pa
+            Pa = (np.eye(n + 1) - Ka @ Ha) @ Pa
             continue
-        H = np.zeros(8)
+        H = np.zeros(n)
         H[:2] = rng.normal(size=2)
         H[:2] /= np.linalg.norm(H[:2])
         H[2:4] = -rng.uniform(0.0, 10.0) * H[:2]
+        H[6:8] = -H[:2]  # the primary beacon's offset
         r_var, r = 4.0, float(rng.uniform(50.0, 2000.0))
-        z = float(H[:4] @ x) + r * s + float(rng.normal(0.0, 2.0))
+        z = float(H @ x) + r * s + float(rng.normal(0.0, 2.0))
         # the range with the scale as estimated taken out (``corrected``, to first order)
-        nu = z - float(H[:4] @ y) - r * scale.s
-        S = float(H[:4] @ P @ H[:4]) + r_var
-        K = np.zeros(8)
-        K[:4] = P @ H[:4] / S
-        A = np.eye(4) - np.outer(K[:4], H[:4])
-        y = y + K[:4] * nu
-        P = A @ P @ A.T + r_var * np.outer(K[:4], K[:4])
-        y = y + scale.ranged(t, K, H, r, nu, S)
-        ha = np.append(H[:4], r)
+        nu = z - float(H @ y) - r * scale.s
+        S = float(H @ P @ H) + r_var
+        K = P @ H / S
+        A = np.eye(n) - np.outer(K, H)
+        y = y + K * nu
+        P = A @ P @ A.T + r_var * np.outer(K, K)
+        y = y + scale.ranged(path, K, H, r, nu, S)
+        ha = np.append(H, r)
         Ka = Pa @ ha / (ha @ Pa @ ha + r_var)
         xa = xa + Ka * (z - ha @ xa)
         Pa = Pa - np.outer(Ka, ha @ Pa)
-    assert np.allclose(y, xa[:4], rtol=1e-7, atol=1e-7)
-    assert math.isclose(scale.s, xa[4], rel_tol=1e-7, abs_tol=1e-10)
-    assert math.isclose(scale.m, Pa[4, 4], rel_tol=1e-7)
-    nn, ee, ne = scale.position(t)
-    assert np.allclose(
-        [P[0, 0] + nn, P[1, 1] + ee, P[0, 1] + ne],
-        [Pa[0, 0], Pa[1, 1], Pa[0, 1]],
-        rtol=1e-7,
-    )
+    assert np.allclose(y, xa[:n], rtol=1e-7, atol=1e-7)
+    assert math.isclose(scale.s, xa[n], rel_tol=1e-7, abs_tol=1e-10)
+    assert math.isclose(scale.m, Pa[n, n], rel_tol=1e-7)
+    # carried on past the last update, as an estimate between ranges asks for it
+    path[0] += 7.0
+    path[1] += 3.0
+    path[4] -= 2.0
+    F = np.eye(n)
+    F[0, 2] = F[1, 3] = 7.0
+    F[0, 4], F[1, 5] = 3.0, -2.0
+    Fa = np.eye(n + 1)
+    Fa[:n, :n] = F
+    Pa = Fa @ Pa @ Fa.T
+    P = F @ P @ F.T
+    nn, ee, ne = scale.position(path)
+    assert np.allclose([P[0, 0] + nn, P[1, 1] + ee, P[0, 1] + ne], [Pa[0, 0], Pa[1, 1], Pa[0, 1]],
+                       rtol=1e-7)  # fmt: skip
     assert scale.m < 0.5 * rel**2  # the ranges taught it something
 
 
@@ -215,23 +234,27 @@ def test_a_checkpoint_claims_no_more_than_the_filter_knew() -> None:
     """The scale's share of the position's uncertainty goes into the checkpoint's
     covariance, since the resumed filter starts its sensitivity to the scale afresh; a
     held scale that cannot be one leaves the prior."""
+    def at(t: float) -> list[float]:
+        return [t, 0.0, 0.0, 0.0, 0.0, 0.0]
+
     c = RangeScale(0.003)
-    c.restart(0.0)
+    c.restart(at(0.0))
     H = np.zeros(8)
     H[0] = 1.0
     K = np.zeros(8)
-    K[0], K[2] = 0.5, 0.001
-    c.ranged(10.0, K, H, 800.0, 2.0, 9.0)
-    s, m, added = c.held(70.0)
-    psi = c._moved(70.0)
+    K[0], K[2], K[4] = 0.5, 0.001, 0.0002
+    c.ranged(at(10.0), K, H, 800.0, 2.0, 9.0)
+    s, m, added = c.held(at(70.0))
+    psi = c._moved(at(70.0))
     assert m < 0.003**2 and np.allclose(added, m * np.outer(psi, psi))
-    assert added[0, 0] > 0.0 and added[0, 0] == pytest.approx(c.position(70.0)[0])
+    assert added[0, 0] > 0.0 and added[0, 0] == pytest.approx(c.position(at(70.0))[0])
+    assert added[4, 4] > 0.0  # the heading bias learnt from the range carries it too
     fresh = RangeScale(0.003)
-    assert fresh.resume(80.0, s, m) and (fresh.s, fresh.m) == (s, m)
-    assert fresh.position(90.0) == (0.0, 0.0, 0.0)  # its share is in the covariance now
+    assert fresh.resume(at(80.0), s, m) and (fresh.s, fresh.m) == (s, m)
+    assert fresh.position(at(90.0)) == (0.0, 0.0, 0.0)  # its share is in the covariance now
     for bad in ((math.nan, m), (s, -1.0), (-0.7, m), (s, math.inf)):
-        assert not fresh.resume(80.0, *bad) and (fresh.s, fresh.m) == (0.0, 0.003**2)
-    assert fresh.resume(80.0, s, 1.0) and fresh.m == 0.003**2  # never surer of nothing
+        assert not fresh.resume(at(80.0), *bad) and (fresh.s, fresh.m) == (0.0, 0.003**2)
+    assert fresh.resume(at(80.0), s, 1.0) and fresh.m == 0.003**2  # never surer of nothing
 
 
 def test_the_configured_sound_speed_error_reaches_both_beliefs_and_zero_turns_it_off() -> None:
@@ -256,11 +279,13 @@ def test_it_never_raises(
     t: float, r: float, nu: float, var: float, k: list[float], h: list[float], s2: list[float]
 ) -> None:
     c = RangeScale(0.003)
-    c.restart(0.0)
+    c.restart([0.0] * 6)
     K, H = np.array(k), np.array(h)
-    c.spread(t, H, r)
+    at = [t, r, nu, var, t, r]
+    c.spread(at, H, r)
     c.corrected(r)
-    c.ranged(t, K, H, r, nu, var)
-    c.fixed(t, np.array([k, k]).T, np.array([h, h]), np.array([nu, var]), np.reshape(s2, (2, 2)))
-    c.position(t + 1.0)
+    c.ranged(at, K, H, r, nu, var)
+    c.fixed(at, np.array([k, k]).T, np.array([h, h]), np.array([nu, var]), np.reshape(s2, (2, 2)))
+    c.position([t + 1.0, *at[1:]])
+    c.held(at)
     assert 1.0 + c.s > 0.0

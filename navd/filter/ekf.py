@@ -71,10 +71,11 @@ class RangeEKF(RangeFusion):
         )
         self.initialised = True
         self.t = t
+        self.path[0] = t
         self.t_anchor = t
         self._forget_ranges()  # ranges from before would not chain to this state
         if self.scale is not None:
-            self.scale.restart(t)
+            self.scale.restart(self.path)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
@@ -82,9 +83,8 @@ class RangeEKF(RangeFusion):
         it folded in: the resumed filter holds no sensitivity to the scale yet."""
         if self.scale is None:
             return self.x.copy(), self.P.copy(), None
-        s, m, added = self.scale.held(self.t)
-        P = self.P.copy()
-        P[:4, :4] += added
+        s, m, added = self.scale.held(self.path)
+        P = self.P + added
         return self.x.copy(), P, (s, m)
 
     def restore(
@@ -96,8 +96,8 @@ class RangeEKF(RangeFusion):
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
-        if self.scale is not None and (scale is None or not self.scale.resume(self.t, *scale)):
-            self.scale.restart(self.t)
+        if self.scale is not None and (scale is None or not self.scale.resume(self.path, *scale)):
+            self.scale.restart(self.path)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
@@ -116,7 +116,7 @@ class RangeEKF(RangeFusion):
         self._limit_current()
         self.t_anchor = self.t
         if self.scale is not None:
-            self._shift(self.scale.fixed(self.t, K, H, residual, S), hd)
+            self._shift(self.scale.fixed(self.path, K, H, residual, S), hd)
         self._forget_ranges(scale_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 
@@ -137,11 +137,20 @@ class RangeEKF(RangeFusion):
         self.track.step(t, dn, de)
         w = min(1.0, dt / CAL_MEAN_S)
         j = self.dv_dcal
-        j[0] += w * (-u * spsi - j[0])
-        j[1] += w * (speed * cpsi - j[1])
-        j[2] += w * (u * cpsi - j[2])
-        j[3] += w * (speed * spsi - j[3])
+        dn_db, de_db, dn_ds, de_ds = -u * spsi, u * cpsi, speed * cpsi, speed * spsi
+        j[0] += w * (dn_db - j[0])
+        j[1] += w * (dn_ds - j[1])
+        j[2] += w * (de_db - j[2])
+        j[3] += w * (de_ds - j[3])
         self.t = t
+        path = self.path
+        path[0] = t
+        path[1] += dn_db * dt
+        path[2] += de_db * dt
+        path[3] += dn_ds * dt
+        path[4] += de_ds * dt
+        if self.primary is not None:
+            path[5] += dt / self._off_tau
         if self.history.enabled:
             self.history.add(t, self._F.copy(), self.x.copy(), self.P.copy())
 
@@ -156,10 +165,11 @@ class RangeEKF(RangeFusion):
         if self.consider is None and self.scale is None:
             return est
         dnn = dee = dne = 0.0
-        for c in (self.consider, self.scale):
-            if c is not None:
-                nn, ee, ne = c.position(self.t)
-                dnn, dee, dne = dnn + nn, dee + ee, dne + ne
+        if self.consider is not None:
+            dnn, dee, dne = self.consider.position(self.t)
+        if self.scale is not None:
+            nn, ee, ne = self.scale.position(self.path)
+            dnn, dee, dne = dnn + nn, dee + ee, dne + ne
         return StateEstimate(
             est.lat, est.lon, est.current_n, est.current_e,
             est.var_n + dnn, est.var_e + dee, est.cov_ne + dne,

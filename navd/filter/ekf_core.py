@@ -58,6 +58,9 @@ class EkfCore:
         # scale (F's position-calibration block over dt), averaged over about the window
         # the re-acquisition fits (row-major: dvn/db, dvn/ds, dve/db, dve/ds)
         self.dv_dcal = [0.0, 0.0, 0.0, 0.0]
+        # running totals over the steps, of the time and of what the transitions add
+        # (navd/filter/range_scale.py's Path): the transition over any interval, in sums
+        self.path = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         # the step's transition and process noise, filled in place by predict
         # (navd/filter/ekf_step.py), and the noise model as that step takes it
         self._F = np.eye(N_STATES)

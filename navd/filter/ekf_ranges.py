@@ -96,7 +96,7 @@ class RangeFusion(EkfCore):
         if self.consider is not None:
             self.consider.reset(self.t)
         if scale_too and self.scale is not None:
-            self.scale.reset(self.t)
+            self.scale.reset(self.path)
         self._recent.clear()
         self._nis.clear()
         self._window.clear()
@@ -232,7 +232,7 @@ class RangeFusion(EkfCore):
         # the gate, the weights and the NIS see the scale's uncertainty as well, which
         # the filter's own covariance does not hold
         if self.scale is not None:
-            S += self.scale.spread(self.t, H, expected)
+            S += self.scale.spread(self.path, H, expected)
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
         self.last_s = S
@@ -270,7 +270,7 @@ class RangeFusion(EkfCore):
         shift = None
         if self.scale is not None:
             # the residual's variance to the filter, with the weight it was fused with
-            shift = self.scale.ranged(self.t, K, H, expected, residual, hph + r_var)
+            shift = self.scale.ranged(self.path, K, H, expected, residual, hph + r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
@@ -285,9 +285,7 @@ class RangeFusion(EkfCore):
     def _shift(self, shift: np.ndarray, hd: float) -> None:
         """Move position and current by what the range scale just learnt did to them
         (navd/filter/range_scale.py); the relinearised window's last state with them."""
-        dx = np.zeros(N_STATES)
-        dx[:4] = shift
-        self._apply(dx, hd)
+        self._apply(shift, hd)
         self._limit_current()
         if self._steps:
             self._steps[-1].x_post = self.x.copy()
