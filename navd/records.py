@@ -152,7 +152,7 @@ class Resume:
     surface_bar: float | None = None  # the depth gauge's zero
     surface_alt: float | None = None  # the water's ellipsoidal height
     depth_m: float | None = None  # the depth then: the vehicle is submerged until it says not
-    # the ranges' common scale error as learnt, and its variance (navd/filter/range_scale.py);
+    # the ranges' common scale error as learnt, and its variance (navd/filter/range_biases.py);
     # ``P`` holds what that variance did to the position already
     range_scale: float | None = None
     range_scale_var: float | None = None

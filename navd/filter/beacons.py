@@ -95,12 +95,9 @@ class BeaconResolver:
                 seen.append((t, lat_r, lon_r))
                 while seen and seen[0][0] < t - _FIT_S:
                     seen.popleft()
-        return (
-            BeaconFix(
-                lat_r, lon_r, depth, spec.turnaround_s, spec.position_std_m, spec.position_corr_s
-            ),
-            "ok",
-        )
+        # a configured position is a surveyed one: its error is the same for every reply
+        corr_s = spec.position_corr_s if carried else math.inf
+        return BeaconFix(lat_r, lon_r, depth, spec.turnaround_s, spec.position_std_m, corr_s), "ok"
 
     def _predict(
         self, t: float, name: str, depth: float, spec: Beacon

@@ -187,7 +187,7 @@ class Corrections:
     calibration_refuted: bool | None = None
 
 
-#: the ranges' common scale error as a checkpoint holds it (navd/filter/range_scale.py):
+#: the ranges' common scale error as a checkpoint holds it (navd/filter/range_biases.py):
 #: its estimate and variance
 HeldScale = tuple[float, float]
 

@@ -74,16 +74,13 @@ class RangeEKF(RangeFusion):
         self.path[0] = t
         self.t_anchor = t
         self._forget_ranges()  # ranges from before would not chain to this state
-        if self.scale is not None:
-            self.scale.restart(self.path)
+        self.biases.restart(self.path)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
-        """The state, and the covariance with what the range scale's uncertainty adds to
-        it folded in: the resumed filter holds no sensitivity to the scale yet."""
-        if self.scale is None:
-            return self.x.copy(), self.P.copy(), None
-        s, m, added = self.scale.held(self.path)
+        """The state, and the covariance with what the range biases' uncertainty adds to
+        it folded in: the resumed filter holds no sensitivity to them yet."""
+        s, m, added = self.biases.held(self.path)
         P = self.P + added
         return self.x.copy(), P, (s, m)
 
@@ -96,8 +93,8 @@ class RangeEKF(RangeFusion):
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
-        if self.scale is not None and (scale is None or not self.scale.resume(self.path, *scale)):
-            self.scale.restart(self.path)
+        if scale is None or not self.biases.resume(self.path, *scale):
+            self.biases.restart(self.path)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
@@ -115,9 +112,8 @@ class RangeEKF(RangeFusion):
         self._apply(K @ residual, hd)
         self._limit_current()
         self.t_anchor = self.t
-        if self.scale is not None:
-            self._shift(self.scale.fixed(self.path, K, H, residual, S), hd)
-        self._forget_ranges(scale_too=False)
+        self._shift(self.biases.fixed(self.path, K, H, residual, S), hd)
+        self._forget_ranges(biases_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 
     # -- prediction --------------------------------------------------------------------
@@ -162,13 +158,9 @@ class RangeEKF(RangeFusion):
 
     def estimate(self) -> StateEstimate:
         est = self.estimate_of(self.x, self.P)
-        if self.consider is None and self.scale is None:
-            return est
-        dnn = dee = dne = 0.0
+        dnn, dee, dne = self.biases.position(self.path)
         if self.consider is not None:
-            dnn, dee, dne = self.consider.position(self.t)
-        if self.scale is not None:
-            nn, ee, ne = self.scale.position(self.path)
+            nn, ee, ne = self.consider.position(self.t)
             dnn, dee, dne = dnn + nn, dee + ee, dne + ne
         return StateEstimate(
             est.lat, est.lon, est.current_n, est.current_e,

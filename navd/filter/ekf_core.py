@@ -20,7 +20,7 @@ from navd import geodesy
 from navd.filter.common import History
 from navd.filter.consider import CurrentConsider
 from navd.filter.ekf_step import Noise
-from navd.filter.range_scale import RangeScale
+from navd.filter.range_biases import RangeBiases
 from navd.filter.track import RecentTrack
 from navd.settings import NoiseConfig
 
@@ -49,9 +49,10 @@ class EkfCore:
         # what a faster-changing current would add to the published covariance (none
         # unless the owner sets one: navd/filter/bank.py's uncalibrated belief)
         self.consider: CurrentConsider | None = None
-        # the ranges' common scale error, from the configured sound speed's
-        # (navd/filter/range_scale.py): estimated beside the filter, none if not allowed for
-        self.scale: RangeScale | None = None
+        # the ranges' scale error (from the configured sound speed's) and the surveyed
+        # transponders' position errors, estimated beside the filter
+        # (navd/filter/range_biases.py; RangeFusion sets the scale's prior)
+        self.biases = RangeBiases(0.0)
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
         # how the water-relative velocity (north, east) moves with heading bias and speed
@@ -59,7 +60,7 @@ class EkfCore:
         # the re-acquisition fits (row-major: dvn/db, dvn/ds, dve/db, dve/ds)
         self.dv_dcal = [0.0, 0.0, 0.0, 0.0]
         # running totals over the steps, of the time and of what the transitions add
-        # (navd/filter/range_scale.py's Path): the transition over any interval, in sums
+        # (navd/filter/range_biases.py's Path): the transition over any interval, in sums
         self.path = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         # the step's transition and process noise, filled in place by predict
         # (navd/filter/ekf_step.py), and the noise model as that step takes it

@@ -39,7 +39,7 @@ from navd.filter import reacquire, relinearise
 from navd.filter.common import GateDecision, RangeMeas, joseph_update
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
-from navd.filter.range_scale import RangeScale
+from navd.filter.range_biases import RangeBiases
 from navd.filter.relinearise import LineOfSight
 from navd.settings import NoiseConfig
 
@@ -68,8 +68,7 @@ class RangeFusion(EkfCore):
         one-sigma error as a fraction of it (0: none allowed for)."""
         super().__init__(noise, max_current_mps)
         self.sound_speed_rel_std = sound_speed_rel_std
-        if sound_speed_rel_std > 0.0:
-            self.scale = RangeScale(sound_speed_rel_std)
+        self.biases = RangeBiases(sound_speed_rel_std)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -88,15 +87,15 @@ class RangeFusion(EkfCore):
         self._steps: deque[relinearise.Step] = deque(maxlen=self.relinearise_ranges)
         self.relinearised = 0  # ranges after which the window was solved again
 
-    def _forget_ranges(self, scale_too: bool = True) -> None:
+    def _forget_ranges(self, biases_too: bool = True) -> None:
         """A fix or a re-acquisition pinned the estimate: ranges before it say nothing
         it does not, and the considers' errors (navd/filter/consider.py) start again, as
-        does what the range scale did to the estimate (navd/filter/range_scale.py); but
+        does what the range biases did to the estimate (navd/filter/range_biases.py); but
         not after a GPS fix, which carries that through its gains."""
         if self.consider is not None:
             self.consider.reset(self.t)
-        if scale_too and self.scale is not None:
-            self.scale.reset(self.path)
+        if biases_too:
+            self.biases.reset(self.path)
         self._recent.clear()
         self._nis.clear()
         self._window.clear()
@@ -211,16 +210,36 @@ class RangeFusion(EkfCore):
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
         self.history.widen(self.P.copy())
 
+    def _surveyed(self, m: RangeMeas) -> bool:
+        """Whether ``m``'s beacon is a surveyed one (an error that does not wander) that the
+        offset states do not track: the range biases carry its error."""
+        if m.beacon == self.primary or not m.beacon_position_std_m > 0.0:
+            return False
+        return math.isinf(m.beacon_position_corr_s)
+
+    def _unbiased(self, m: RangeMeas) -> RangeMeas:
+        """``m`` with the biases as estimated taken out: the range at the water's sound
+        speed, the beacon where its surveyed position's error puts it."""
+        rng = self.biases.corrected(m.range_m)
+        off = self.biases.offset(m.beacon)
+        if off is None:
+            return replace(m, range_m=rng)
+        lat, lon = geodesy.offset_position(m.beacon_lat, m.beacon_lon, off[0], off[1], m.beacon_hd)
+        return replace(m, range_m=rng, beacon_lat=lat, beacon_lon=lon)
+
     def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
-        if self.scale is not None:
-            m = replace(m, range_m=self.scale.corrected(m.range_m))
+        surveyed = self._surveyed(m)
+        if surveyed:
+            self.biases.surveyed(m.beacon, m.beacon_position_std_m)
+        m = self._unbiased(m)
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
         r_var = m.std_m**2
-        untracked = m.beacon != self.primary
+        untracked = m.beacon != self.primary and not surveyed
         if untracked:
-            # another beacon's position error is not a state: count it as range noise
+            # a wandering error of another beacon's position is not a state: count it as
+            # range noise
             r_var += m.beacon_position_std_m**2
         # the range's mean and spread over the filter's uncertainty, not at its mean
         bias, var2 = self._second_order(expected, H, sight)
@@ -229,10 +248,10 @@ class RangeFusion(EkfCore):
         residual = m.range_m - expected
         hph = float(H @ self.P @ H)
         S = hph + r_var
-        # the gate, the weights and the NIS see the scale's uncertainty as well, which
+        # the gate, the weights and the NIS see the biases' uncertainty as well, which
         # the filter's own covariance does not hold
-        if self.scale is not None:
-            S += self.scale.spread(self.path, H, expected)
+        c = self.biases.jacobian(m.beacon, expected, H)
+        S += self.biases.spread(self.path, H, c)
         chi2 = self.gate_chi2_long if residual > 0.0 else self.gate_chi2
         gate_m = math.sqrt(chi2 * S)
         self.last_s = S
@@ -267,15 +286,12 @@ class RangeFusion(EkfCore):
         K, self.P, _ = joseph_update(self.P, H, r_var)
         if self.consider is not None:
             self.consider.update(self.t, K, H)
-        shift = None
-        if self.scale is not None:
-            # the residual's variance to the filter, with the weight it was fused with
-            shift = self.scale.ranged(self.path, K, H, expected, residual, hph + r_var)
+        # the residual's variance to the filter, with the weight it was fused with
+        shift = self.biases.ranged(self.path, K, H, c, residual, hph + r_var)
         self._apply(K * residual, m.vehicle_hd)
         self._limit_current()
         self._relinearise(sight, m, r_var, x_prior, P_prior, m.range_m - bias)
-        if shift is not None:
-            self._shift(shift, m.vehicle_hd)
+        self._shift(shift, m.vehicle_hd)
         if untracked:
             self._floor_along_sight(H, m.beacon_position_std_m)
         self._recent.append((True, residual))
@@ -283,8 +299,8 @@ class RangeFusion(EkfCore):
         return GateDecision(True, residual, gate_m, "ok")
 
     def _shift(self, shift: np.ndarray, hd: float) -> None:
-        """Move position and current by what the range scale just learnt did to them
-        (navd/filter/range_scale.py); the relinearised window's last state with them."""
+        """Move the state by what the range biases just learnt did to it
+        (navd/filter/range_biases.py); the relinearised window's last state with it."""
         self._apply(shift, hd)
         self._limit_current()
         if self._steps:
