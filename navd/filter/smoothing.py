@@ -4,6 +4,12 @@ Each filter the navigator runs, between restarts, is one segment: its step histo
 (:class:`navd.filter.common.History`, on disk) and the estimates of its ticks with the
 step each was made at.  The estimates go to a temporary file as their serialised
 lines, and come back when smoothed: a day's replay keeps a few bytes a tick.
+
+The smoother runs over the filter's chain, its state and covariance.  What the filter's
+published covariance holds beside that chain (the range biases' share, the current its
+belief considers, the spread between the calibration bank's beliefs) the chain does not
+carry, and smoothing cannot take it away: each smoothed estimate keeps it as the filter
+published it at that tick.
 """
 
 from __future__ import annotations
@@ -28,10 +34,21 @@ class _Segment:
         self.filter = flt
         flt.keep_history()
         self.steps = array("q")  # the step each tick's estimate was made at
+        # what each tick's published covariance held beside the chain: (nn, ee, ne)
+        self.beside = array("d")
         self.lines = tempfile.TemporaryFile()  # noqa: SIM115 - lives as long as the history, closed by close()
 
     def tick(self, est: Estimate) -> None:
         self.steps.append(len(self.filter.history) - 1)
+        f = self.filter
+        own = f.estimate_of(f.x, f.P)
+        self.beside.extend(
+            (
+                max(0.0, est.std_n * est.std_n - own.var_n),
+                max(0.0, est.std_e * est.std_e - own.var_e),
+                est.cov_ne - own.cov_ne,
+            )
+        )
         self.lines.write(jsonlines.dumps_line(to_dict(est)).encode())
 
     def smoothed(self) -> Iterator[Estimate]:
@@ -42,7 +59,9 @@ class _Segment:
         for k, x, P in rts_backward(f.history, f.state_diff, f.state_apply):
             while j >= 0 and self.steps[j] == k:
                 e = f.estimate_of(x, P)
-                values[j] = (e.lat, e.lon, e.current_n, e.current_e, e.var_n, e.var_e, e.cov_ne)
+                nn, ee, ne = self.beside[3 * j : 3 * j + 3]
+                values[j] = (e.lat, e.lon, e.current_n, e.current_e,
+                             e.var_n + nn, e.var_e + ee, e.cov_ne + ne)  # fmt: skip
                 j -= 1
             if j < 0:
                 break  # no tick before this step: the rest of the pass changes nothing
