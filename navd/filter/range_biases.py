@@ -68,6 +68,14 @@ class RangeBiases:
         self.M = np.array([[self.var]])
         self._at: tuple[float, ...] = (0.0,) * 6  # the filter's path when psi was last set
         self._psi = np.zeros((N, 1))  # the filter's error per unit of each bias, there
+        self._alone: tuple[float, ...] | None = None
+        self._cache()
+
+    def _cache(self) -> None:
+        """What ``position`` needs, as floats: with the scale alone, its variance and
+        psi's rows that reach the position (an estimate asks at every tick)."""
+        alone = len(self.beta) == 1
+        self._alone = (float(self.M[0, 0]), *self._psi[:6, 0].tolist()) if alone else None
 
     @property
     def s(self) -> float:
@@ -99,6 +107,7 @@ class RangeBiases:
             return False
         self.beta[0] = s
         self.M[0, 0] = min(m, self.var)
+        self._cache()
         return True
 
     def held(self, at: Path) -> tuple[float, float, np.ndarray]:
@@ -116,6 +125,7 @@ class RangeBiases:
         fit): the estimate no longer carries them, the biases themselves are as they were."""
         self._at = tuple(at)
         self._psi = np.zeros((N, len(self.beta)))
+        self._cache()
 
     def surveyed(self, beacon: str, std_m: float) -> None:
         """A transponder whose surveyed position is off by a constant error of ``std_m``
@@ -130,6 +140,7 @@ class RangeBiases:
         M[k, k] = M[k + 1, k + 1] = std_m * std_m
         self.M = M
         self._psi = np.hstack([self._psi, np.zeros((N, 2))])
+        self._cache()
 
     def offset(self, beacon: str) -> tuple[float, float] | None:
         """A surveyed transponder's position error as estimated (north, east, metres);
@@ -218,6 +229,7 @@ class RangeBiases:
         self._psi = psi
         self.beta = self.beta + delta
         self.M = 0.5 * (M + M.T)
+        self._cache()
         return shift
 
     def position(self, at: Path) -> tuple[float, float, float]:
@@ -226,11 +238,10 @@ class RangeBiases:
         a = self._at
         dt = max(0.0, at[0] - a[0])
         db_n, db_e, ds_n, ds_e = at[1] - a[1], at[2] - a[2], at[3] - a[3], at[4] - a[4]
-        if len(self.beta) == 1:
-            p = self._psi[:, 0].tolist()
-            pn = p[0] + dt * p[2] + db_n * p[4] + ds_n * p[5]
-            pe = p[1] + dt * p[3] + db_e * p[4] + ds_e * p[5]
-            v = float(self.M[0, 0])
+        if self._alone is not None:
+            v, p0, p1, p2, p3, p4, p5 = self._alone
+            pn = p0 + dt * p2 + db_n * p4 + ds_n * p5
+            pe = p1 + dt * p3 + db_e * p4 + ds_e * p5
             return v * pn * pn, v * pe * pe, v * pn * pe
         p = self._psi
         with np.errstate(over="ignore", invalid="ignore"):
