@@ -154,7 +154,9 @@ class Beacon:
     # one-sigma horizontal error of the position the beacon reports (its GPS, the
     # transducer's offset); the default filter estimates it as a slowly varying offset
     position_std_m: float = _num(5.0, lo=0.0, hi=1000.0)
-    position_corr_s: float = _num(120.0, gt=0.0)  # how slowly that error wanders (GPS: minutes)
+    # how slowly a reported position's error wanders (GPS: minutes); a configured one's is
+    # constant whatever this says (docs/replay.md, "Beacons whose position error is not a state")
+    position_corr_s: float = _num(120.0, gt=0.0)
     # replies without a position (the boat's location line down): the beacon is
     # predicted from its recent reports for this long, then such ranges are refused
     predict_max_s: float = _num(300.0, lo=0.0, hi=3600.0)
