@@ -275,6 +275,28 @@ def test_a_restart_underwater_goes_on_with_the_scale_as_learnt() -> None:
     assert rests["held"] < 0.85 * rests["forgotten"]
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("range_scale", 0.9), ("range_scale", "fast"), ("range_scale", math.nan),
+     ("range_scale_var", -1.0)],
+)  # fmt: skip
+def test_a_resume_line_with_an_impossible_scale_is_refused_by_name(
+    field: str, value: object
+) -> None:
+    """A hand-edited or corrupt ``cmd_resume`` line: refused with the field named, and a
+    checkpoint file's impossible number refused the same way (a value that is no number
+    there is taken as absent, and the scale starts from its prior)."""
+    line = {"type": "cmd_resume", "t": 10.0, "mode": "default", "x": [0.1] * 8,
+            "P": [0.0] * 64, "age_s": 5.0}  # fmt: skip
+    with pytest.raises(ValueError, match=field):
+        parse_record({**line, field: value})
+    snap = resume_record({**line, field: value}, 10.0)
+    if isinstance(value, float):
+        assert isinstance(snap, str) and field in snap
+    else:
+        assert isinstance(snap, Resume) and snap.range_scale is None
+
+
 def test_a_checkpoint_claims_no_more_than_the_filter_knew() -> None:
     """The scale's share of the position's uncertainty goes into the checkpoint's
     covariance, since the resumed filter starts its sensitivity to the scale afresh; a
