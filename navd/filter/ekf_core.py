@@ -20,7 +20,6 @@ from navd import geodesy
 from navd.filter.common import History
 from navd.filter.consider import CurrentConsider
 from navd.filter.ekf_step import Noise
-from navd.filter.range_biases import RangeBiases
 from navd.filter.track import RecentTrack
 from navd.settings import NoiseConfig
 
@@ -49,10 +48,6 @@ class EkfCore:
         # what a faster-changing current would add to the published covariance (none
         # unless the owner sets one: navd/filter/bank.py's uncalibrated belief)
         self.consider: CurrentConsider | None = None
-        # the ranges' scale error (from the configured sound speed's) and the surveyed
-        # transponders' position errors, estimated beside the filter
-        # (navd/filter/range_biases.py; RangeFusion sets the scale's prior)
-        self.biases = RangeBiases(0.0)
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
         # how the water-relative velocity (north, east) moves with heading bias and speed

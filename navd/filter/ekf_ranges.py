@@ -68,6 +68,8 @@ class RangeFusion(EkfCore):
         one-sigma error as a fraction of it (0: none allowed for)."""
         super().__init__(noise, max_current_mps)
         self.sound_speed_rel_std = sound_speed_rel_std
+        # the ranges' scale error (the configured sound speed's) and the surveyed
+        # transponders' position errors, estimated beside the filter
         self.biases = RangeBiases(sound_speed_rel_std)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
@@ -301,6 +303,8 @@ class RangeFusion(EkfCore):
     def _shift(self, shift: np.ndarray, hd: float) -> None:
         """Move the state by what the range biases just learnt did to it
         (navd/filter/range_biases.py); the relinearised window's last state with it."""
+        if not shift.any():
+            return  # nothing learnt (a scale taken as known, a broken step)
         self._apply(shift, hd)
         self._limit_current()
         if self._steps:
