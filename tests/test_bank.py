@@ -7,6 +7,7 @@ import math
 import random
 
 import numpy as np
+import pytest
 
 from navd import geodesy
 from navd.filter.bank import CalibrationBank, range_likelihood, uncalibrated_noise
@@ -182,3 +183,42 @@ def test_a_restored_checkpoint_starts_unrefuted() -> None:
     bank.restore(x, P, 25.0)
     assert not bank.refuted
     assert np.allclose(bank.config.x, x)
+
+
+def _net_bank(beacons: list[str], minutes: float) -> CalibrationBank:
+    """A vehicle running north at 1.5 m/s past surveyed transponders, one reply every 10 s
+    from each of ``beacons`` in turn."""
+    bank = CalibrationBank(RangeEKF(NoiseConfig(), 9.0, 4.0, 3, max_current_mps=2.0))
+    bank.initialise(LAT, LON, 3.0, 0.0)
+    where = {"t1": (300.0, 400.0), "t2": (600.0, -400.0)}
+    for k in range(1, int(minutes * 6) + 1):
+        for _ in range(100):
+            bank.predict(bank.config.t + 0.1, 0.1, 0.0, 1.5, -2.0)
+        name = beacons[k % len(beacons)]
+        blat, blon = geodesy.offset_position(LAT, LON, *where[name])
+        vlat, vlon = geodesy.offset_position(LAT, LON, 1.5 * bank.config.t, 0.0)
+        r = geodesy.ecef_distance(vlat, vlon, -2.0, blat, blon, -20.0)
+        t = bank.config.t
+        bank.range_update(RangeMeas(t, t, r, name, blat, blon, -20.0, -2.0, 1.0, 0.5, math.inf))
+    return bank
+
+
+def test_a_net_carries_the_considered_tide_in_the_uncalibrated_gains() -> None:
+    """One transponder cannot see the water change across its line of sight, so the
+    uncalibrated belief only considers a tide; a second one can, and from its first reply
+    that belief's own walk keeps up with such a tide instead, its covariance taking over
+    what the consider held (its ellipse does not jump)."""
+    one = _net_bank(["t1"], 10.0)
+    assert one.uncal.consider is not None
+    u = one.uncal
+    before, own = u.estimate(), float(u.P[0, 0])
+    assert before.var_n - own > 1.0  # the consider held more than a square metre
+    u.carry_considered_walk()
+    after = u.estimate()
+    assert u.consider is None
+    for a, b in ((before.var_n, after.var_n), (before.var_e, after.var_e),
+                 (before.cov_ne, after.cov_ne)):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-9)
+    net = _net_bank(["t1", "t2"], 10.0)
+    assert net.uncal.consider is None
+    assert net.config.consider is None

@@ -22,7 +22,12 @@ be wrong, the published ellipse holds where the other belief puts the vehicle, a
 integrity degrades with it.  ``D`` is what water turning like the site's strongest
 tide would add to the uncalibrated filter's error (navd/filter/consider.py): one
 beacon cannot see a current change across its line of sight, so the belief that
-allows for unknown water allows for that too, in its spread but not in its gains.
+allows for unknown water allows for that too, in its spread but not in its gains.  A
+net of surveyed transponders sees the water change in every direction, so once one
+other than the tracked beacon replies, the uncalibrated filter carries that walk in its
+own gains instead: considered only, its lag behind such water grew without bound (on
+a 3-transponder net with the bound's noise model, a published std of 15-37 m against
+errors of a metre, BENCHMARKS.md).
 The mean is not moved to the mixture's: with one beacon a wrong filter still predicts
 the next range well while it sits on the same circle, so a few ranges can give a
 diverged ``uncal`` nearly all the weight, and following it made the drawn missions
@@ -246,6 +251,9 @@ class CalibrationBank:
         self._test_priors()
 
     def range_update(self, m: RangeMeas) -> GateDecision:
+        u = self.uncal
+        if u.consider is not None and u.primary is not None and u.surveyed(m):
+            u.carry_considered_walk()  # a net: see the module's docstring
         decision = self.config.range_update(m)
         du = self.uncal.range_update(m)
         lc = range_likelihood(decision.residual_m, self.config.last_s)

@@ -13,6 +13,10 @@ transitions and gains (its Joseph form without the measurement noise, which ``P`
 already holds).  ``P + D`` is then the covariance of the filter's estimate were the water
 to change that much faster; the estimate itself is unchanged.
 
+Ranges that see the water change in every direction (a net of transponders) need no such
+allowance: the filter then carries the walk in its own gains
+(``RangeEKF.carry_considered_walk``).
+
 ``D`` covers position and current (north, east, each), the states the extra walk drives
 directly; what it would add to heading bias and speed scale through later gains is left
 out.  Between measurements the transition is exact: position integrates the current.
@@ -28,7 +32,8 @@ import numpy as np
 class CurrentConsider:
     def __init__(self, extra_walk_mps_per_sqrt_s: float) -> None:
         """``extra_walk``: the walk the water may have beyond the filter's own (m/s/sqrt s)."""
-        self.q2 = max(0.0, extra_walk_mps_per_sqrt_s) ** 2
+        self.walk = max(0.0, extra_walk_mps_per_sqrt_s)
+        self.q2 = self.walk**2
         self.t = 0.0
         # D over (dn, de, dc_n, dc_e), metres and m/s, row-major as floats: an estimate
         # reads it at every tick, a range rewrites it every few seconds
@@ -39,7 +44,8 @@ class CurrentConsider:
         self.t = t
         self._flat = [0.0] * 16
 
-    def _moved(self, t: float) -> np.ndarray:
+    def covariance(self, t: float) -> np.ndarray:
+        """``D`` at ``t`` over (dn, de, dc_n, dc_e)."""
         dt = max(0.0, t - self.t)
         D: np.ndarray = np.array(self._flat).reshape(4, 4)
         if dt == 0.0:
@@ -62,7 +68,7 @@ class CurrentConsider:
         if not (math.isfinite(t) and np.isfinite(K[:4]).all() and np.isfinite(H[:4]).all()):
             return  # a broken update tells nothing of this error
         with np.errstate(over="ignore", invalid="ignore"):
-            D = self._moved(t)
+            D = self.covariance(t)
             A = np.eye(4) - np.outer(K[:4], H[:4])
             D = A @ D @ A.T
         if not np.isfinite(D).all():
@@ -71,7 +77,7 @@ class CurrentConsider:
         self._flat = (0.5 * (D + D.T)).ravel().tolist()
 
     def position(self, t: float) -> tuple[float, float, float]:
-        """The extra (var_n, var_e, cov_ne) at ``t``, m^2: ``_moved``'s position block in
+        """The extra (var_n, var_e, cov_ne) at ``t``, m^2: ``covariance``'s position block in
         scalars, since an estimate asks for it at every tick."""
         dt = max(0.0, t - self.t)
         d = self._flat

@@ -212,7 +212,7 @@ class RangeFusion(EkfCore):
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
         self.history.widen(self.P.copy())
 
-    def _surveyed(self, m: RangeMeas) -> bool:
+    def surveyed(self, m: RangeMeas) -> bool:
         """Whether ``m``'s beacon is a surveyed one (an error that does not wander) that the
         offset states do not track: the range biases carry its error."""
         if m.beacon == self.primary or not m.beacon_position_std_m > 0.0:
@@ -231,7 +231,7 @@ class RangeFusion(EkfCore):
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
-        surveyed = self._surveyed(m)
+        surveyed = self.surveyed(m)
         if surveyed:
             self.biases.surveyed(m.beacon, m.beacon_position_std_m)
         m = self._unbiased(m)
