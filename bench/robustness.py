@@ -39,7 +39,7 @@ from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.score import Score, score
 from navd.formats.truth import read_truth
-from navd.hil.bound import matched_config, mission_bound
+from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import mission_config, write_mission
 from navd.hil.world import simulate
@@ -273,18 +273,18 @@ def run_one(
     workdir: str,
     noise_seed: int | None = None,
     no_outliers: bool = False,
-    matched_noise: bool = False,
+    matched: tuple[str, ...] | None = None,
 ) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
-    with ``no_outliers``, without its outliers (:func:`clean`); with ``matched_noise``,
-    navd given the bound's own model of the mission (navd/hil/bound.py,
+    with ``no_outliers``, without its outliers (:func:`clean`); with ``matched``, navd
+    given those parts of the bound's own model of the mission (navd/hil/bound.py,
     ``matched_config``)."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
     crew = config_from_dict(mission_config(mission))
-    write_mission(mission, d, matched_config(mission, crew) if matched_noise else None)
+    write_mission(mission, d, None if matched is None else matched_config(mission, crew, matched))
     b = mission_bound(mission, crew)
     truth = read_truth(d / "truth.jsonl")
     out_d, err_d = replay_mission(d, "default")
@@ -440,11 +440,17 @@ def main() -> int:
     )
     p.add_argument(
         "--matched-noise",
-        action="store_true",
+        nargs="*",
+        choices=list(MATCHED_PARTS),
+        metavar="PART",
         help="navd configured with the bound's own model of each mission (its sensor noise, "
-        "priors the size of its errors): what the default's conservative noise model costs",
+        "priors the size of its errors): what the default's conservative noise model costs; "
+        f"with PARTs, only those of {', '.join(MATCHED_PARTS)}",
     )
     args = p.parse_args()
+    matched = None if args.matched_noise is None else tuple(args.matched_noise or MATCHED_PARTS)
+    model = "" if matched is None else (
+        " --matched-noise" + "".join(f" {x}" for x in args.matched_noise))
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
     seeds = list(range(1, args.missions + 1))
@@ -456,7 +462,7 @@ def main() -> int:
         n = len(seeds)
         results = run_all(
             run_one, seeds, [tmp] * n, [None] * n, [args.no_outliers] * n,
-            [args.matched_noise] * n,
+            [matched] * n,
             jobs=args.jobs, scheduler=args.scheduler,
         )
     took = time.perf_counter() - t0
@@ -470,8 +476,7 @@ def main() -> int:
                 fh.write(json.dumps(row) + "\n")
     cmd = f"`python -m bench.robustness --missions {args.missions}" + (
         f" --only {args.only}" if args.only else "") + (
-        " --no-outliers" if args.no_outliers else "") + (
-        " --matched-noise`" if args.matched_noise else "`")
+        " --no-outliers" if args.no_outliers else "") + model + "`"
     where = f"Dask at {args.scheduler}" if args.scheduler else f"{args.jobs} worker processes"
     pace = (
         f"Ran in {took / 60:.1f} min on {where} ({took / len(seeds):.2f} s a mission; "
@@ -481,9 +486,10 @@ def main() -> int:
         f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
         args.write,
         "bench-robustness" + "-no-outliers" * args.no_outliers
-        + "-matched-noise" * args.matched_noise,
+        + model.replace(" --", "-").replace(" ", "-"),
         "Robustness" + " without outliers" * args.no_outliers
-        + " with the bound's noise model" * args.matched_noise,
+        + ("" if matched is None else " with the bound's noise model")
+        + (f" ({', '.join(args.matched_noise)} only)" if args.matched_noise else ""),
     )
     return 0
 

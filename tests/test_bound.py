@@ -58,4 +58,14 @@ def test_the_matched_config_is_a_valid_config_with_the_bounds_model() -> None:
         assert nz.range_std_m >= sc.acoustics.range_noise_m
         assert cfg.beacons["udb"].position_std_m == sc.boat.gps_std_m
         walks[name] = nz.current_walk_mps_per_sqrt_s
+        # one part of the model alone (--matched-noise walks) leaves the crew's other keys
+        part = matched_config(m, config_from_dict(crew), ("walks",))
+        one = config_from_dict(deep_merge(crew, part)).navigation
+        assert one.noise.current_walk_mps_per_sqrt_s == walks[name]
+        assert one.noise.heading_bias_walk_deg_per_sqrt_s == 0.0
+        crew_nav = config_from_dict(crew).navigation
+        assert one.noise.heading_std_deg == crew_nav.noise.heading_std_deg
+        assert one.noise.range_std_m == crew_nav.noise.range_std_m
+        assert one.sound_speed == crew_nav.sound_speed
+        assert one.noise.heading_std_deg != nz.heading_std_deg
     assert walks["cb1"] < 0.1 * walks["tidal"]

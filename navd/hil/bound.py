@@ -31,6 +31,7 @@ class the bound is that of an estimator that waits for the line.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,15 +116,33 @@ def _range_var(m: Mission) -> float:
     return sc.acoustics.range_noise_m**2 + swing_var
 
 
-def matched_config(m: Mission, cfg: Config) -> dict[str, object]:
+# the parts of the bound's model matched_config can give navd, and the noise keys of each
+MATCHED_PARTS: dict[str, tuple[str, ...]] = {
+    "ranges": ("range_std_m",),
+    "inputs": ("heading_std_deg", "speed_std_mps", "input_corr_s"),
+    "priors": ("current_init_std_mps", "heading_bias_init_std_deg", "speed_scale_init_std"),
+    "walks": (
+        "current_walk_mps_per_sqrt_s",
+        "heading_bias_walk_deg_per_sqrt_s",
+        "speed_scale_walk_per_sqrt_s",
+    ),
+    "gps": ("gps_std_m",),
+}
+
+
+def matched_config(
+    m: Mission, cfg: Config, parts: Collection[str] = tuple(MATCHED_PARTS)
+) -> dict[str, object]:
     """Config overrides that give navd's default mode the bound's own model of ``m``: its
     sensor noise (white at the sensor rate), range noise, priors as large as the
     mission's errors, a current walk as fast as the truth's current changes over the
-    mission (as a mean square), no calibration walks, and the boat's GPS error.
+    mission (as a mean square), no calibration walks, and the boat's GPS error; or only
+    the ``parts`` of it named (MATCHED_PARTS; the sound speed's prior goes with the
+    priors, the boat's GPS with gps).
 
     Not a config for a vehicle (a crew knows none of this): it separates the cost of the
     default's conservative noise model from what the filter itself loses (bench
-    robustness ``--matched-noise``)."""
+    robustness ``--matched-noise``), and each part's share of that cost."""
     sc, s, tr = m.scenario, m.scenario.sensors, m.truth
     P = _prior(m, cfg, {})  # the calibration's priors (no beacon states)
     stride = max(1, round(_STEP_S * s.rate_hz))
@@ -142,10 +161,13 @@ def matched_config(m: Mission, cfg: Config) -> dict[str, object]:
         "speed_scale_walk_per_sqrt_s": 0.0,
         "gps_std_m": max(s.gps_std_m, 0.1),
     }
-    c_crew = cfg.navigation.sound_speed.model_obj().at(0.0)
-    sound = {"std_mps": math.sqrt(P[_SOUND, _SOUND]) * c_crew}
-    out: dict[str, object] = {"navigation": {"noise": noise, "sound_speed": sound}}
-    if not sc.acoustics.transponders:
+    keys = {k for part in parts for k in MATCHED_PARTS[part]}
+    nav: dict[str, object] = {"noise": {k: v for k, v in noise.items() if k in keys}}
+    if "priors" in parts:
+        c_crew = cfg.navigation.sound_speed.model_obj().at(0.0)
+        nav["sound_speed"] = {"std_mps": math.sqrt(P[_SOUND, _SOUND]) * c_crew}
+    out: dict[str, object] = {"navigation": nav}
+    if "gps" in parts and not sc.acoustics.transponders:
         b = sc.boat
         out["beacons"] = {"udb": {"position_std_m": b.gps_std_m, "position_corr_s": b.gps_corr_s}}
     return out
