@@ -58,8 +58,9 @@ def test_the_matched_config_is_a_valid_config_with_the_bounds_model() -> None:
         assert nz.range_std_m >= sc.acoustics.range_noise_m
         assert cfg.beacons["udb"].position_std_m == sc.boat.gps_std_m
         walks[name] = nz.current_walk_mps_per_sqrt_s
-        # one part of the model alone (--matched-noise walks) leaves the crew's other keys
-        part = matched_config(m, config_from_dict(crew), ("walks",))
+        # parts of the model alone (--matched-noise current calibration) leave the crew's
+        # other keys
+        part = matched_config(m, config_from_dict(crew), ("current", "calibration"))
         one = config_from_dict(deep_merge(crew, part)).navigation
         assert one.noise.current_walk_mps_per_sqrt_s == walks[name]
         assert one.noise.heading_bias_walk_deg_per_sqrt_s == 0.0

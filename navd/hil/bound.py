@@ -121,11 +121,8 @@ MATCHED_PARTS: dict[str, tuple[str, ...]] = {
     "ranges": ("range_std_m",),
     "inputs": ("heading_std_deg", "speed_std_mps", "input_corr_s"),
     "priors": ("current_init_std_mps", "heading_bias_init_std_deg", "speed_scale_init_std"),
-    "walks": (
-        "current_walk_mps_per_sqrt_s",
-        "heading_bias_walk_deg_per_sqrt_s",
-        "speed_scale_walk_per_sqrt_s",
-    ),
+    "current": ("current_walk_mps_per_sqrt_s",),
+    "calibration": ("heading_bias_walk_deg_per_sqrt_s", "speed_scale_walk_per_sqrt_s"),
     "gps": ("gps_std_m",),
 }
 
