@@ -251,9 +251,6 @@ class CalibrationBank:
         self._test_priors()
 
     def range_update(self, m: RangeMeas) -> GateDecision:
-        u = self.uncal
-        if u.consider is not None and u.primary is not None and u.surveyed(m):
-            u.carry_considered_walk()  # a net: see the module's docstring
         decision = self.config.range_update(m)
         du = self.uncal.range_update(m)
         lc = range_likelihood(decision.residual_m, self.config.last_s)

@@ -15,7 +15,7 @@ to change that much faster; the estimate itself is unchanged.
 
 Ranges that see the water change in every direction (a net of transponders) need no such
 allowance: the filter then carries the walk in its own gains
-(``RangeEKF.carry_considered_walk``).
+(``RangeFusion.carry_considered_walk``).
 
 ``D`` covers position and current (north, east, each), the states the extra walk drives
 directly; what it would add to heading bias and speed scale through later gains is left
@@ -32,12 +32,16 @@ import numpy as np
 class CurrentConsider:
     def __init__(self, extra_walk_mps_per_sqrt_s: float) -> None:
         """``extra_walk``: the walk the water may have beyond the filter's own (m/s/sqrt s)."""
-        self.walk = max(0.0, extra_walk_mps_per_sqrt_s)
-        self.q2 = self.walk**2
+        self.q2 = max(0.0, extra_walk_mps_per_sqrt_s) ** 2
         self.t = 0.0
         # D over (dn, de, dc_n, dc_e), metres and m/s, row-major as floats: an estimate
         # reads it at every tick, a range rewrites it every few seconds
         self._flat = [0.0] * 16
+
+    @property
+    def walk(self) -> float:
+        """The extra walk allowed for (m/s/sqrt s)."""
+        return math.sqrt(self.q2)
 
     def reset(self, t: float) -> None:
         """A position and current fixed without this error (GPS, a re-acquisition's fit)."""

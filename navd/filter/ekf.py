@@ -116,19 +116,6 @@ class RangeEKF(RangeFusion):
         self._forget_ranges(biases_too=False)
         self.history.correct(self.x.copy(), self.P.copy())
 
-    def carry_considered_walk(self) -> None:
-        """From now on the current walks in the filter's own gains as fast as its consider
-        allowed for, and the error the consider followed joins the covariance: ranges that
-        see the water change in every direction keep up with it rather than lag behind."""
-        c = self.consider
-        if c is None:
-            return
-        self.P[:4, :4] += c.covariance(self.t)
-        speed, heading, corr, walk, bias_walk, scale_walk = self._step_noise
-        self._step_noise = (speed, heading, corr, math.hypot(walk, c.walk), bias_walk, scale_walk)
-        self.consider = None
-        self.history.widen(self.P.copy())
-
     # -- prediction --------------------------------------------------------------------
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         """Propagate over ``dt`` with the compass heading (true north, radians) and RPM speed."""

@@ -202,6 +202,20 @@ class RangeFusion(EkfCore):
         if short > 0.0:
             self.P = self.P + short * np.outer(a, a)
 
+    def carry_considered_walk(self) -> None:
+        """From now on the current walks in the filter's own gains as fast as its consider
+        allowed for, and the error the consider followed joins the covariance: ranges that
+        see the water change in every direction (a second, surveyed transponder) keep up
+        with it rather than lag behind."""
+        c = self.consider
+        if c is None:
+            return
+        self.P[:4, :4] += c.covariance(self.t)
+        speed, heading, corr, walk, bias_walk, scale_walk = self._step_noise
+        self._step_noise = (speed, heading, corr, math.hypot(walk, c.walk), bias_walk, scale_walk)
+        self.consider = None
+        self.history.widen(self.P.copy())
+
     def _track_beacon(self, m: RangeMeas) -> None:
         """Adopt the first beacon heard as the one whose position error is estimated."""
         if self.primary is not None or m.beacon_position_std_m <= 0.0:
@@ -212,7 +226,7 @@ class RangeFusion(EkfCore):
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
         self.history.widen(self.P.copy())
 
-    def surveyed(self, m: RangeMeas) -> bool:
+    def _surveyed(self, m: RangeMeas) -> bool:
         """Whether ``m``'s beacon is a surveyed one (an error that does not wander) that the
         offset states do not track: the range biases carry its error."""
         if m.beacon == self.primary or not m.beacon_position_std_m > 0.0:
@@ -231,9 +245,10 @@ class RangeFusion(EkfCore):
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         self._track_beacon(m)
-        surveyed = self.surveyed(m)
+        surveyed = self._surveyed(m)
         if surveyed:
             self.biases.surveyed(m.beacon, m.beacon_position_std_m)
+            self.carry_considered_walk()  # a net: this filter now sees the water everywhere
         m = self._unbiased(m)
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
