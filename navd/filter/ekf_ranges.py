@@ -411,6 +411,9 @@ class RangeFusion(EkfCore):
                     m.range_m,
                     math.sqrt(sigma2),
                     rejected,
+                    m.beacon,
+                    m.beacon_position_std_m,
+                    m.beacon_position_corr_s,
                 )
             )
         return rays
@@ -436,6 +439,7 @@ class RangeFusion(EkfCore):
             self.reacquire_after if min_rejected is None else min_rejected,
             _REACQUIRED_STD_M,
             seed=self.reacquisitions * 7919 + self.reacquire_refused,
+            scale_var=self.biases.m,
         )
         if hyp is None:
             return False

@@ -26,6 +26,12 @@ is refitted on its inliers.  It is accepted only when
 
 Multipath replies are long by unrelated amounts, so they do not agree with each
 other on any one hypothesis; real ranges from a drifted estimate all do.
+
+The fit weighs the ranges by their errors' joint covariance, not each alone: the error
+of a beacon's reported position is shared by its replies over its correlation time, and
+a scale error by all of them.  Weighed as independent, the window's dozen replies to one
+boat claimed a position and current about twice as sure as they were, and the truth left
+the re-acquired ellipse (BENCHMARKS.md, "Honest uncertainty near the bound").
 """
 
 from __future__ import annotations
@@ -56,8 +62,11 @@ class Ray:
     lag_ping: float  # seconds from then to now
     lag_reply: float
     range_m: float
-    sigma_m: float
+    sigma_m: float  # all of its error: the range's own and its beacon's position's
     rejected: bool  # the gate refused it under the present estimate
+    source: str  # the beacon's name
+    beacon_std_m: float  # the part of sigma_m that is its beacon's position error
+    beacon_corr_s: float  # ... and that error's correlation time (inf: a constant)
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,7 +81,7 @@ class Hypothesis:
 
 
 class _Rays:
-    def __init__(self, rays: list[Ray]) -> None:
+    def __init__(self, rays: list[Ray], scale_var: float) -> None:
         self.B = np.array([r.beacon for r in rays])
         self.O = np.array([r.ping for r in rays])
         self.R = np.array([r.reply for r in rays])
@@ -81,6 +90,35 @@ class _Rays:
         self.z = np.array([r.range_m for r in rays])
         self.sig = np.array([r.sigma_m for r in rays])
         self.rejected = np.array([r.rejected for r in rays])
+        # What the rays share: a beacon's position error, correlated over its time (a
+        # boat's GPS wanders over minutes, a surveyed transponder's error never does),
+        # and the ranges' scale error, common to all.  Fitted as if independent, twelve
+        # rays from one beacon would claim to average both away.
+        std = np.array([r.beacon_std_m for r in rays])
+        corr = np.array([r.beacon_corr_s for r in rays])
+        same = np.array([[a.source == b.source for b in rays] for a in rays])
+        lag = np.abs(self.lb[:, None] - self.lb[None, :])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            rho = np.where(lag == 0.0, 1.0, np.exp(-lag / np.maximum(corr, 1e-9)[:, None]))
+        self.shared = np.where(same, rho, 0.0) * np.outer(std, std)
+        self.own = np.maximum(self.sig**2 - std**2, 0.0)
+        self.scale_var = scale_var if math.isfinite(scale_var) and scale_var > 0.0 else 0.0
+
+    def weights(self, J: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+        """The inverse covariance of the errors of rays ``idx``, whose Jacobian is ``J``:
+        a beacon's position error reaches each range along its line of sight, the scale's
+        in proportion to its length."""
+        sight = J[:, :2]
+        z = self.z[idx]
+        R = self.shared[np.ix_(idx, idx)] * (sight @ sight.T) + self.scale_var * np.outer(z, z)
+        # the beacon's error along the line of sight is all of it (sight is a unit
+        # vector but for the depth's share), as sigma_m counts it
+        R[np.diag_indices_from(R)] = self.own[idx] + self.shared[idx, idx] + self.scale_var * z**2
+        try:
+            W: np.ndarray = np.linalg.inv(R)
+        except np.linalg.LinAlgError:
+            return None
+        return W if np.all(np.isfinite(W)) else None
 
     def predict(self, th: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted ranges of rays ``idx`` under ``th`` and their Jacobian (n x 4)."""
@@ -102,12 +140,14 @@ class _Rays:
     def fit(self, idx: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Gauss-Newton from no correction; (theta, covariance) or None if it fails."""
         th = np.zeros(4)
-        w = 1.0 / self.sig[idx] ** 2
         N = prior
         for _ in range(_ITERATIONS):
             pred, J = self.predict(th, idx)
-            N = J.T @ (w[:, None] * J) + prior
-            g = J.T @ (w * (self.z[idx] - pred)) - prior @ th
+            W = self.weights(J, idx)
+            if W is None:
+                return None
+            N = J.T @ W @ J + prior
+            g = J.T @ W @ (self.z[idx] - pred) - prior @ th
             try:
                 step = np.linalg.solve(N, g)
             except np.linalg.LinAlgError:
@@ -173,17 +213,19 @@ def find(
     min_rejected: int,
     max_std_m: float,
     seed: int,
+    scale_var: float = 0.0,
 ) -> Hypothesis | None:
     """The correction most of the recent ranges agree on, or None when they do not agree.
 
     It must also explain at least ``min_rejected`` of the ranges the gate refused:
     a correction the accepted ranges alone support is no news, and replacing a
     converged covariance by a fit over a few ranges would throw information away.
+    ``scale_var`` is the variance of the ranges' scale error as the filter knows it.
     """
     n = len(rays)
     if n < min_support:
         return None
-    r = _Rays(rays)
+    r = _Rays(rays, scale_var)
     if not (np.all(np.isfinite(r.B)) and np.all(np.isfinite(r.z)) and np.all(r.sig > 0)):
         return None
     prior = _drift_prior(pos_cov, cur_cov, since_anchor_s, max_current_mps)

@@ -1,0 +1,87 @@
+"""The re-acquisition fit (navd/filter/reacquire.py) claims no more than its ranges say."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navd.filter import reacquire
+
+CHI2_4DOF_95 = 9.49
+BOAT_STD_M = 5.0  # the boat's reported position error, per axis
+BOAT_CORR_S = 120.0  # ... and its correlation time
+RANGE_STD_M = 1.5
+
+
+def _window(rng: np.random.Generator, told_corr_s: float) -> tuple[list[reacquire.Ray], np.ndarray]:
+    """Twelve replies over five minutes from a boat 450 m off, whose reported position
+    wanders as a Gauss-Markov error (as a GPS does), from a vehicle running east on a
+    dead-reckoned track; the estimate off by a drawn position and current error."""
+    d, dc = rng.normal(0.0, 30.0, 2), rng.normal(0.0, 0.1, 2)
+    beacon = np.array([400.0, 200.0, 3.0])
+    lags = np.arange(12)[::-1] * 25.0 + 1.0
+    err = rng.normal(0.0, BOAT_STD_M, 2)
+    rays = []
+    for i, lag in enumerate(lags):
+        if i:
+            a = math.exp(-(lags[i - 1] - lag) / BOAT_CORR_S)
+            err = a * err + math.sqrt(1.0 - a * a) * rng.normal(0.0, BOAT_STD_M, 2)
+        ping, reply = np.array([0.0, -1.5 * (lag + 1.0)]), np.array([0.0, -1.5 * lag])
+        b = beacon[:2] + err
+        at_ping = ping + d - (lag + 1.0) * dc
+        at_reply = reply + d - lag * dc
+        r = 0.5 * (math.hypot(*(b - at_ping), beacon[2]) + math.hypot(*(b - at_reply), beacon[2]))
+        rays.append(
+            reacquire.Ray(
+                (float(beacon[0]), float(beacon[1]), float(beacon[2])),
+                (float(ping[0]), float(ping[1])),
+                (float(reply[0]), float(reply[1])),
+                lag + 1.0,
+                lag,
+                r + rng.normal(0.0, RANGE_STD_M),
+                math.hypot(RANGE_STD_M, BOAT_STD_M),
+                True,
+                "udb",
+                BOAT_STD_M,
+                told_corr_s,
+            )
+        )
+    return rays, np.concatenate([d, dc])
+
+
+def _inside95(told_corr_s: float, draws: int = 150) -> tuple[int, float]:
+    rng = np.random.default_rng(7)
+    found, inside = 0, 0
+    for k in range(draws):
+        rays, truth = _window(rng, told_corr_s)
+        h = reacquire.find(
+            rays, (0.0, 0.0), np.eye(2) * 1e4, np.eye(2) * 0.01, 300.0, 2.0, 6, 0, 500.0, k
+        )
+        if h is None:
+            continue
+        found += 1
+        e = np.array([h.d_north, h.d_east, h.dc_north, h.dc_east]) - truth
+        inside += float(e @ np.linalg.solve(h.cov, e)) <= CHI2_4DOF_95
+    return found, inside / max(found, 1)
+
+
+def test_a_boats_wandering_position_error_is_not_averaged_away() -> None:
+    """The replies of one boat share its position error for minutes: the fit's ellipse
+    over position and current holds the truth as often as it says."""
+    found, inside = _inside95(BOAT_CORR_S)
+    assert found >= 120
+    assert 0.9 <= inside <= 0.99
+    # told the error is new with every reply, the same fit claims too much
+    _, independent = _inside95(0.0)
+    assert independent < 0.8
+
+
+def test_a_common_scale_error_widens_the_fit() -> None:
+    rng = np.random.default_rng(3)
+    rays, _ = _window(rng, BOAT_CORR_S)
+    args = ((0.0, 0.0), np.eye(2) * 1e4, np.eye(2) * 0.01, 300.0, 2.0, 6, 0, 500.0, 1)
+    known = reacquire.find(rays, *args)
+    scaled = reacquire.find(rays, *args, scale_var=0.01**2)
+    assert known is not None and scaled is not None
+    assert np.trace(scaled.cov[:2, :2]) > np.trace(known.cov[:2, :2]) + 1.0
