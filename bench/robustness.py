@@ -37,7 +37,7 @@ from typing import Any
 
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
-from navd.analysis.score import Score, score
+from navd.analysis.score import REACQUIRED_S, Score, score
 from navd.formats.truth import read_truth
 from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
@@ -310,6 +310,21 @@ def _rms(xs: list[float]) -> float:
     return math.sqrt(statistics.fmean([x * x for x in xs])) if xs else math.nan
 
 
+def _reacquired(results: list[Result]) -> str:
+    """How the ellipse holds the truth in the quarter of an hour after a re-acquisition,
+    against the whole submerged time, over the missions that re-acquired (means over
+    missions, as the table's in95)."""
+    after = [r.default for r in results if r.default and r.default.reacquired_estimates]
+    if not after:
+        return "No mission re-acquired."
+    return (
+        f"In the {REACQUIRED_S / 60:.0f} minutes after each of the default's "
+        f"re-acquisitions ({len(after)} missions), the truth lies inside the 95 % ellipse "
+        f"{_mean([x.reacquired_inside95 for x in after]):.3f} of the time; over the same "
+        f"missions' whole submerged time {_mean([x.inside95 for x in after]):.3f}."
+    )
+
+
 def _row(name: str, rs: list[Result]) -> str:
     ok = [r for r in rs if r.default is not None and r.thesis is not None]
     d = [r.default for r in ok if r.default is not None]
@@ -366,6 +381,7 @@ def table(results: list[Result], n: int) -> str:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row(name, rs) for name, rs in classes if rs]
+    lines += ["", _reacquired(results)]
     bad = [r for r in results if r.error or r.diverged]
     if bad:
         lines += ["", "Missions that raised or diverged:", ""]

@@ -32,3 +32,33 @@ def test_mahalanobis_in_closed_form_and_refusing_a_degenerate_covariance() -> No
     assert math.isclose(_mahalanobis2(1.0, 2.0, 4.0, 2.0, 1.0), (1 * 2 - 2 * 1 * 2 * 1 + 4 * 4) / 7)
     assert _mahalanobis2(1.0, 1.0, 1.0, 1.0, 1.0) == math.inf  # singular
     assert _mahalanobis2(1.0, 1.0, -1.0, -1.0, 0.0) == math.inf  # not positive definite
+
+
+def test_the_ellipse_after_a_reacquisition_is_scored_on_its_own() -> None:
+    """The quarter of an hour after a re-acquisition is where a fit of a few ranges stands
+    in for what the filter knew: the bench reports how its ellipse holds the truth there."""
+    from navd.analysis.score import REACQUIRED_S, score
+    from navd.formats.truth import TruthSample
+    from navd.schema import Estimate, RangeDecision
+
+    lat0, lon0 = 37.0, -80.0
+    north_m = 1.0 / 111_000.0  # a degree of latitude, about
+    truth = [TruthSample(float(t), lat0, lon0, 10.0, 0.0, 1.0, 0.0, 0.0, lat0, lon0)
+             for t in range(0, 3001, 10)]  # fmt: skip
+
+    def est(t: float, err_m: float) -> Estimate:
+        return Estimate(t, lat0 + err_m * north_m, lon0, 0.0, 0.0, 5.0, 5.0, 0.0, 10.0,
+                        "submerged", "ok")  # fmt: skip
+
+    # 5 m of std: 3 m off is inside the 95 % ellipse, 30 m is not; the re-acquisition at
+    # 1000 s is followed by 300 s outside, then by what is inside again
+    outs: list = [est(float(t), 30.0 if 1000 <= t < 1300 else 3.0) for t in range(0, 3000, 10)]
+    outs.append(RangeDecision(1000.0, 999.0, "udb", accepted=False, reason="gate_reacquire"))
+    s = score(outs, truth)
+    after = REACQUIRED_S / 10
+    assert s.reacquired_estimates == after
+    assert math.isclose(s.reacquired_inside95, 1.0 - 30 / after)
+    assert math.isclose(s.inside95, 1.0 - 30 / 300)
+    # no re-acquisition: nothing to score
+    none = score([o for o in outs if isinstance(o, Estimate)], truth)
+    assert none.reacquired_estimates == 0 and math.isnan(none.reacquired_inside95)

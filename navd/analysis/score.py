@@ -25,6 +25,7 @@ _GEOD = Geodesic.WGS84
 CHI2_2DOF_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
 CHI2_2DOF_99 = 9.210
 _SUBMERGED_DEPTH_M = 0.3
+REACQUIRED_S = 900.0  # how long after a re-acquisition its fit is judged on its own
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,6 +49,11 @@ class Score:
     # and the fraction of submerged time it said ok
     ok_inside99: float = math.nan
     ok_fraction: float = math.nan
+    # in the quarter of an hour after each re-acquisition, when a filter has just put
+    # a fit of a few ranges in place of what it knew: the fraction of that time the
+    # truth lies in the 95 % ellipse, and the estimates that time holds
+    reacquired_inside95: float = math.nan
+    reacquired_estimates: int = 0
 
 
 def replies_to_reacquire(ranges: list[RangeDecision]) -> list[int]:
@@ -166,6 +172,8 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
     ok_inside: list[bool] = []
     last_sub: tuple[float, float] | None = None
     estimates, ranges = split_outputs(outputs)
+    reacquired_at = [r.t for r in ranges if r.reason == "gate_reacquire"]
+    after: list[bool] = []
     for o in estimates:
         tr = truth_at(o.t)
         if tr is None or tr.depth < _SUBMERGED_DEPTH_M:
@@ -175,6 +183,8 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
         errs.append(e)
         d2 = _mahalanobis2(dn, de, o.std_n**2, o.std_e**2, o.cov_ne)
         inside.append(d2 <= CHI2_2DOF_95)
+        if any(0.0 <= o.t - t < REACQUIRED_S for t in reacquired_at):
+            after.append(d2 <= CHI2_2DOF_95)
         if o.integrity == "ok":
             ok_inside.append(d2 <= CHI2_2DOF_99)
         cur_errs.append(math.hypot(o.current_n - tr.current_n, o.current_e - tr.current_e))
@@ -206,4 +216,6 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
         reacquire_replies_max=float(max(reacq)) if reacq else math.nan,
         ok_inside99=float(np.mean(ok_inside)) if ok_inside else math.nan,
         ok_fraction=len(ok_inside) / len(errs),
+        reacquired_inside95=float(np.mean(after)) if after else math.nan,
+        reacquired_estimates=len(after),
     )
