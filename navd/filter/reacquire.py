@@ -96,7 +96,8 @@ class _Rays:
         # rays from one beacon would claim to average both away.
         std = np.array([r.beacon_std_m for r in rays])
         corr = np.array([r.beacon_corr_s for r in rays])
-        same = np.array([[a.source == b.source for b in rays] for a in rays])
+        names = np.array([r.source for r in rays])
+        same = names[:, None] == names[None, :]
         lag = np.abs(self.lb[:, None] - self.lb[None, :])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             rho = np.where(lag == 0.0, 1.0, np.exp(-lag / np.maximum(corr, 1e-9)[:, None]))
@@ -137,17 +138,28 @@ class _Rays:
         J[:, 2:] = 0.5 * (self.lo[idx, None] * uo + self.lb[idx, None] * ub)
         return 0.5 * (ro + rb), J
 
-    def fit(self, idx: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """Gauss-Newton from no correction; (theta, covariance) or None if it fails."""
+    def fit(
+        self, idx: np.ndarray, prior: np.ndarray, joint: bool = True
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Gauss-Newton from no correction; (theta, covariance) or None if it fails.
+        Without ``joint``, each range weighed alone: enough to propose a hypothesis, at a
+        fraction of the cost."""
         th = np.zeros(4)
         N = prior
+        w = 1.0 / self.sig[idx] ** 2
         for _ in range(_ITERATIONS):
             pred, J = self.predict(th, idx)
-            W = self.weights(J, idx)
-            if W is None:
-                return None
-            N = J.T @ W @ J + prior
-            g = J.T @ W @ (self.z[idx] - pred) - prior @ th
+            res = self.z[idx] - pred
+            if joint:
+                W = self.weights(J, idx)
+                if W is None:
+                    return None
+                JW = J.T @ W
+                N = JW @ J + prior
+                g = JW @ res - prior @ th
+            else:
+                N = J.T @ (w[:, None] * J) + prior
+                g = J.T @ (w * res) - prior @ th
             try:
                 step = np.linalg.solve(N, g)
             except np.linalg.LinAlgError:
@@ -236,7 +248,7 @@ def find(
         np.sort(rng.choice(n, size=k, replace=False)) for _ in range(_SUBSETS)
     ]
     for idx in subsets:
-        res = r.fit(idx, prior)
+        res = r.fit(idx, prior, joint=False)
         if res is None:
             continue
         th = res[0]
