@@ -52,7 +52,9 @@ def test_the_ellipse_after_a_reacquisition_is_scored_on_its_own() -> None:
 
     # 5 m of std: 3 m off is inside the 95 % ellipse, 30 m is not; the re-acquisition at
     # 1000 s is followed by 300 s outside, then by what is inside again
-    outs: list = [est(float(t), 30.0 if 1000 <= t < 1300 else 3.0) for t in range(0, 3000, 10)]
+    outs: list[Estimate | RangeDecision] = [
+        est(float(t), 30.0 if 1000 <= t < 1300 else 3.0) for t in range(0, 3000, 10)
+    ]
     outs.append(RangeDecision(1000.0, 999.0, "udb", accepted=False, reason="gate_reacquire"))
     s = score(outs, truth)
     after = REACQUIRED_S / 10
