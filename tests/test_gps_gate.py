@@ -122,3 +122,5 @@ def test_a_run_of_refused_ranges_is_degraded_then_lost_whatever_the_window_holds
         math.inf,
     )
     assert all(e["integrity"] == "lost" for e in est if t8 + 0.2 < e["t"] < t_re)
+    # a vehicle at rest is not moved to a circle 2 km off that its drift cannot reach
+    assert max(_error_m(e) for e in est) < 50.0
