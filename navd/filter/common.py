@@ -12,6 +12,11 @@ import numpy as np
 if TYPE_CHECKING:
     from navd.filter.lsfix import Fix
 
+#: A range reading longer than predicted by more than this many sigma weighs as a Huber
+#: M-estimator weighs it, its pull that of a k-sigma residual: multipath only lengthens a
+#: path.  The filter's update and the re-acquisition's fit both take it.
+HUBER_K = 1.5
+
 
 @dataclass(frozen=True, slots=True)
 class RangeMeas:

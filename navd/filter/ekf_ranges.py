@@ -36,7 +36,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter import reacquire, relinearise
-from navd.filter.common import GateDecision, RangeMeas, joseph_update
+from navd.filter.common import HUBER_K, GateDecision, RangeMeas, joseph_update
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
 from navd.filter.range_biases import RangeBiases
@@ -44,7 +44,6 @@ from navd.filter.relinearise import LineOfSight
 from navd.settings import NoiseConfig
 
 _WINDOW_RANGES = 12
-_HUBER_K = 1.5  # long residuals beyond this many sigma are down-weighted
 _MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
 _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
 _RELIN_RANGES = 30  # accepted ranges the relinearisation solves together (within WINDOW_S)
@@ -294,12 +293,12 @@ class RangeFusion(EkfCore):
             if self._reacquire(m, min_rejected=0):
                 return GateDecision(False, residual, gate_m, "gate_reacquire")
             self.reacquire_refused += 1
-        if residual > _HUBER_K * math.sqrt(S):
+        if residual > HUBER_K * math.sqrt(S):
             # A long reply inside the gate may still be multipath: the gate is wide when
             # the estimate is uncertain.  Weigh it as a Huber M-estimator does, so its
             # pull is that of a k-sigma residual (and its information less): a long
             # outlier cannot drag the estimate, a true range still moves it.
-            r_var = residual * math.sqrt(S) / _HUBER_K - (S - r_var)
+            r_var = residual * math.sqrt(S) / HUBER_K - (S - r_var)
         K, self.P, _ = joseph_update(self.P, H, r_var)
         if self.consider is not None:
             self.consider.update(self.t, K, H)

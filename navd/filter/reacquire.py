@@ -31,7 +31,9 @@ The fit weighs the ranges by their errors' joint covariance, not each alone: the
 of a beacon's reported position is shared by its replies over its correlation time, and
 a scale error by all of them.  Weighed as independent, the window's dozen replies to one
 boat claimed a position and current about twice as sure as they were, and the truth left
-the re-acquired ellipse (BENCHMARKS.md, "Honest uncertainty near the bound").
+the re-acquired ellipse (BENCHMARKS.md, "Honest uncertainty near the bound").  And it weighs
+a range that reads long beyond ``HUBER_K`` sigma as the filter does one inside its gate:
+multipath a few metres long agrees within three sigma, and at full weight bends the fit.
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from navd.filter.common import HUBER_K
 
 _ITERATIONS = 8
 _SUBSETS = 40
@@ -105,16 +109,19 @@ class _Rays:
         self.own = np.maximum(self.sig**2 - std**2, 0.0)
         self.scale_var = scale_var if math.isfinite(scale_var) and scale_var > 0.0 else 0.0
 
-    def weights(self, J: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    def weights(self, J: np.ndarray, idx: np.ndarray, long: np.ndarray) -> np.ndarray | None:
         """The inverse covariance of the errors of rays ``idx``, whose Jacobian is ``J``:
         a beacon's position error reaches each range along its line of sight, the scale's
-        in proportion to its length."""
+        in proportion to its length; ``long``, the variance each range's own error is
+        widened by as a long residual (``_long_variance``)."""
         sight = J[:, :2]
         z = self.z[idx]
         R = self.shared[np.ix_(idx, idx)] * (sight @ sight.T) + self.scale_var * np.outer(z, z)
         # the beacon's error along the line of sight is all of it (sight is a unit
         # vector but for the depth's share), as sigma_m counts it
-        R[np.diag_indices_from(R)] = self.own[idx] + self.shared[idx, idx] + self.scale_var * z**2
+        R[np.diag_indices_from(R)] = (
+            self.own[idx] + long + self.shared[idx, idx] + self.scale_var * z**2
+        )
         try:
             W: np.ndarray = np.linalg.inv(R)
         except np.linalg.LinAlgError:
@@ -151,7 +158,7 @@ class _Rays:
             pred, J = self.predict(th, idx)
             res = self.z[idx] - pred
             if joint:
-                W = self.weights(J, idx)
+                W = self.weights(J, idx, self._long_variance(res, idx))
                 if W is None:
                     return None
                 JW = J.T @ W
@@ -174,6 +181,16 @@ class _Rays:
         except np.linalg.LinAlgError:
             return None
         return th, cov
+
+    def _long_variance(self, res: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """What a range reading long by more than ``HUBER_K`` sigma adds to its variance
+        so that it pulls as a Huber M-estimator lets it (the filter's own rule for a long
+        range inside its gate, navd/filter/ekf_ranges.py): multipath a few metres long
+        is inside the inlier threshold, and at full weight a handful of such replies in
+        a window bend the current the fit hands the filter."""
+        sig = self.sig[idx]
+        extra: np.ndarray = np.where(res > HUBER_K * sig, res * sig / HUBER_K - sig * sig, 0.0)
+        return extra
 
     def cost(self, th: np.ndarray) -> float:
         """Sum of squared normalised residuals, each capped as an outlier's would be."""
