@@ -34,22 +34,25 @@ def _window(rng: np.random.Generator, told_corr_s: float) -> tuple[list[reacquir
         at_ping = ping + d - (lag + 1.0) * dc
         at_reply = reply + d - lag * dc
         r = 0.5 * (math.hypot(*(b - at_ping), beacon[2]) + math.hypot(*(b - at_reply), beacon[2]))
-        rays.append(
-            reacquire.Ray(
-                (float(beacon[0]), float(beacon[1]), float(beacon[2])),
-                (float(ping[0]), float(ping[1])),
-                (float(reply[0]), float(reply[1])),
-                lag + 1.0,
-                lag,
-                r + rng.normal(0.0, RANGE_STD_M),
-                math.hypot(RANGE_STD_M, BOAT_STD_M),
-                True,
-                "udb",
-                BOAT_STD_M,
-                told_corr_s,
-            )
-        )
+        rays.append(_ray(beacon, float(lag), r + rng.normal(0.0, RANGE_STD_M), told_corr_s))
     return rays, np.concatenate([d, dc])
+
+
+def _ray(beacon: np.ndarray, lag: float, range_m: float, told_corr_s: float) -> reacquire.Ray:
+    """A reply ``lag`` seconds old to ``beacon``, the vehicle running east at 1.5 m/s."""
+    return reacquire.Ray(
+        (float(beacon[0]), float(beacon[1]), float(beacon[2])),
+        (0.0, -1.5 * (lag + 1.0)),
+        (0.0, -1.5 * lag),
+        lag + 1.0,
+        lag,
+        range_m,
+        math.hypot(RANGE_STD_M, BOAT_STD_M),
+        True,
+        "udb",
+        BOAT_STD_M,
+        told_corr_s,
+    )
 
 
 def _inside95(told_corr_s: float, draws: int = 150) -> tuple[int, float]:
@@ -93,28 +96,13 @@ def _exact(d: np.ndarray, dc: np.ndarray) -> list[reacquire.Ray]:
     """Twelve replies as ``_window``'s, but every one exact: the boat where it says, the
     ranges without noise."""
     beacon = np.array([400.0, 200.0, 3.0])
-    sigma = math.hypot(RANGE_STD_M, BOAT_STD_M)
     rays = []
     for lag in np.arange(12)[::-1] * 25.0 + 1.0:
         ping, reply = np.array([0.0, -1.5 * (lag + 1.0)]), np.array([0.0, -1.5 * lag])
         at_ping = ping + d - (lag + 1.0) * dc
         at_reply = reply + d - lag * dc
         r = 0.5 * sum(math.hypot(*(beacon[:2] - p), beacon[2]) for p in (at_ping, at_reply))
-        rays.append(
-            reacquire.Ray(
-                (float(beacon[0]), float(beacon[1]), float(beacon[2])),
-                (float(ping[0]), float(ping[1])),
-                (float(reply[0]), float(reply[1])),
-                float(lag + 1.0),
-                float(lag),
-                r,
-                sigma,
-                True,
-                "udb",
-                BOAT_STD_M,
-                BOAT_CORR_S,
-            )
-        )
+        rays.append(_ray(beacon, float(lag), r, BOAT_CORR_S))
     return rays
 
 
@@ -123,8 +111,8 @@ def test_a_long_reply_inside_the_inlier_threshold_pulls_as_the_filter_lets_it(
 ) -> None:
     """Multipath a few sigma long still counts as an inlier.  The fit weighs it as the
     filter weighs a long range inside its gate (Huber, ``HUBER_K``), so it moves the fit
-    far less than at full weight; on the 120 missions, a re-acquisition bent so left
-    seed 26's estimate 111 m off (68 m now; BENCHMARKS.md, session 24)."""
+    far less than at full weight.  On the 120 missions, a re-acquisition bent so took seed
+    26's RMS to 111 m (68 m now; BENCHMARKS.md, session 24)."""
     d, dc = np.array([40.0, -25.0]), np.array([0.08, -0.05])
     rays = _exact(d, dc)
     sigma = rays[0].sigma_m
