@@ -16,37 +16,48 @@ BOAT_CORR_S = 120.0  # ... and its correlation time
 RANGE_STD_M = 1.5
 
 
+_BEACON = np.array([400.0, 200.0, 3.0])  # a boat 450 m off, its transducer 3 m down
+_LAGS = np.arange(12)[::-1] * 25.0 + 1.0  # twelve replies over five minutes
+
+
 def _window(rng: np.random.Generator, told_corr_s: float) -> tuple[list[reacquire.Ray], np.ndarray]:
-    """Twelve replies over five minutes from a boat 450 m off, whose reported position
-    wanders as a Gauss-Markov error (as a GPS does), from a vehicle running east on a
-    dead-reckoned track; the estimate off by a drawn position and current error."""
+    """Twelve replies from the boat, whose reported position wanders as a Gauss-Markov
+    error (as a GPS does), from a vehicle running east on a dead-reckoned track; the
+    estimate off by a drawn position and current error."""
     d, dc = rng.normal(0.0, 30.0, 2), rng.normal(0.0, 0.1, 2)
-    beacon = np.array([400.0, 200.0, 3.0])
-    lags = np.arange(12)[::-1] * 25.0 + 1.0
     err = rng.normal(0.0, BOAT_STD_M, 2)
     rays = []
-    for i, lag in enumerate(lags):
+    for i, lag in enumerate(_LAGS):
         if i:
-            a = math.exp(-(lags[i - 1] - lag) / BOAT_CORR_S)
+            a = math.exp(-(_LAGS[i - 1] - lag) / BOAT_CORR_S)
             err = a * err + math.sqrt(1.0 - a * a) * rng.normal(0.0, BOAT_STD_M, 2)
-        ping, reply = np.array([0.0, -1.5 * (lag + 1.0)]), np.array([0.0, -1.5 * lag])
-        b = beacon[:2] + err
-        at_ping = ping + d - (lag + 1.0) * dc
-        at_reply = reply + d - lag * dc
-        r = 0.5 * (math.hypot(*(b - at_ping), beacon[2]) + math.hypot(*(b - at_reply), beacon[2]))
-        rays.append(_ray(beacon, float(lag), r + rng.normal(0.0, RANGE_STD_M), told_corr_s))
+        rays.append(_ray(d, dc, float(lag), err, rng.normal(0.0, RANGE_STD_M), told_corr_s))
     return rays, np.concatenate([d, dc])
 
 
-def _ray(beacon: np.ndarray, lag: float, range_m: float, told_corr_s: float) -> reacquire.Ray:
-    """A reply ``lag`` seconds old to ``beacon``, the vehicle running east at 1.5 m/s."""
+def _ray(
+    d: np.ndarray,
+    dc: np.ndarray,
+    lag: float,
+    boat_err: np.ndarray,
+    noise: float,
+    told_corr_s: float,
+) -> reacquire.Ray:
+    """A reply ``lag`` seconds old, the vehicle running east at 1.5 m/s: its range from
+    where the vehicle was, the estimate ``d`` and ``dc`` off, to where the boat was,
+    ``boat_err`` off its report, plus ``noise``."""
+    ping, reply = np.array([0.0, -1.5 * (lag + 1.0)]), np.array([0.0, -1.5 * lag])
+    b = _BEACON[:2] + boat_err
+    at_ping = ping + d - (lag + 1.0) * dc
+    at_reply = reply + d - lag * dc
+    r = 0.5 * (math.hypot(*(b - at_ping), _BEACON[2]) + math.hypot(*(b - at_reply), _BEACON[2]))
     return reacquire.Ray(
-        (float(beacon[0]), float(beacon[1]), float(beacon[2])),
-        (0.0, -1.5 * (lag + 1.0)),
-        (0.0, -1.5 * lag),
+        (float(_BEACON[0]), float(_BEACON[1]), float(_BEACON[2])),
+        (float(ping[0]), float(ping[1])),
+        (float(reply[0]), float(reply[1])),
         lag + 1.0,
         lag,
-        range_m,
+        r + noise,
         math.hypot(RANGE_STD_M, BOAT_STD_M),
         True,
         "udb",
@@ -95,15 +106,7 @@ def test_a_common_scale_error_widens_the_fit() -> None:
 def _exact(d: np.ndarray, dc: np.ndarray) -> list[reacquire.Ray]:
     """Twelve replies as ``_window``'s, but every one exact: the boat where it says, the
     ranges without noise."""
-    beacon = np.array([400.0, 200.0, 3.0])
-    rays = []
-    for lag in np.arange(12)[::-1] * 25.0 + 1.0:
-        ping, reply = np.array([0.0, -1.5 * (lag + 1.0)]), np.array([0.0, -1.5 * lag])
-        at_ping = ping + d - (lag + 1.0) * dc
-        at_reply = reply + d - lag * dc
-        r = 0.5 * sum(math.hypot(*(beacon[:2] - p), beacon[2]) for p in (at_ping, at_reply))
-        rays.append(_ray(beacon, float(lag), r, BOAT_CORR_S))
-    return rays
+    return [_ray(d, dc, float(lag), np.zeros(2), 0.0, BOAT_CORR_S) for lag in _LAGS]
 
 
 def test_a_long_reply_inside_the_inlier_threshold_pulls_as_the_filter_lets_it(
