@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -16,6 +17,7 @@ BOAT_CORR_S = 120.0  # ... and its correlation time
 RANGE_STD_M = 1.5
 
 
+Window = Callable[[np.random.Generator, float], tuple[list[reacquire.Ray], np.ndarray]]
 _BEACON = np.array([400.0, 200.0, 3.0])  # a boat 450 m off, its transducer 3 m down
 _LAGS = np.arange(12)[::-1] * 25.0 + 1.0  # twelve replies over five minutes
 
@@ -66,11 +68,13 @@ def _ray(
     )
 
 
-def _inside95(told_corr_s: float, draws: int = 150) -> tuple[int, float]:
+def _inside95(
+    told_corr_s: float, draws: int = 150, window: Window | None = None
+) -> tuple[int, float]:
     rng = np.random.default_rng(7)
     found, inside = 0, 0
     for k in range(draws):
-        rays, truth = _window(rng, told_corr_s)
+        rays, truth = (window or _window)(rng, told_corr_s)
         h = reacquire.find(
             rays, (0.0, 0.0), np.eye(2) * 1e4, np.eye(2) * 0.01, 300.0, 2.0, 6, 0, 500.0, k
         )
@@ -90,6 +94,49 @@ def test_a_boats_wandering_position_error_is_not_averaged_away() -> None:
     assert 0.9 <= inside <= 0.99
     # told the error is new with every reply, the same fit claims too much
     _, independent = _inside95(0.0)
+    assert independent < 0.8
+
+
+_OUTAGE_V_STD = 0.05  # m/s: the error of the velocity a boat is extrapolated at
+
+
+def _outage_window(
+    rng: np.random.Generator, told_corr_s: float
+) -> tuple[list[reacquire.Ray], np.ndarray]:
+    """As ``_window``, but the boat's location line down since a minute before the first
+    reply: each reply's boat is extrapolated from its last report at a velocity
+    ``_OUTAGE_V_STD`` off, so its error is the report's plus that velocity's error times
+    the time since.  ``told_corr_s`` zero: each ray is told the extrapolation's error is
+    its own."""
+    d, dc = rng.normal(0.0, 30.0, 2), rng.normal(0.0, 0.1, 2)
+    dv = rng.normal(0.0, _OUTAGE_V_STD, 2)
+    gps = rng.normal(0.0, BOAT_STD_M, 2)  # the last report's own error, shared by all
+    last_report = float(_LAGS[0]) + 60.0  # seconds ago
+    rays = []
+    for lag in _LAGS:
+        age = last_report - float(lag)
+        err = gps + dv * age
+        ray = _ray(d, dc, float(lag), err, rng.normal(0.0, RANGE_STD_M), BOAT_CORR_S)
+        std = _OUTAGE_V_STD * age
+        rays.append(
+            replace(
+                ray,
+                sigma_m=math.hypot(ray.sigma_m, std),
+                predicted_std_m=std if told_corr_s else 0.0,
+                predicted_from=-last_report if told_corr_s else math.nan,
+            )
+        )
+    return rays, np.concatenate([d, dc])
+
+
+def test_a_predicted_boats_error_is_shared_by_the_replies_of_its_outage() -> None:
+    """A boat extrapolated through an outage is off by one error that grows with the time
+    since its last report, the same for every reply: the fit's ellipse holds the truth
+    as often as it says, where told each reply's error is its own it claims too much."""
+    found, inside = _inside95(BOAT_CORR_S, window=_outage_window)
+    assert found >= 120
+    assert 0.9 <= inside <= 0.99
+    _, independent = _inside95(0.0, window=_outage_window)
     assert independent < 0.8
 
 

@@ -33,6 +33,10 @@ class RangeMeas:
     std_m: float  # range noise
     beacon_position_std_m: float = 0.0  # error of the position the beacon reported
     beacon_position_corr_s: float = 120.0  # its correlation time
+    # the part of std_m that is a predicted beacon's extrapolation error, and the time of
+    # the report it was extrapolated from: one extrapolation's error is every such range's
+    beacon_predicted_std_m: float = 0.0
+    beacon_predicted_from: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)

@@ -77,6 +77,9 @@ class RangeFusion(EkfCore):
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
         self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
+        # while the primary beacon is predicted: when it began, the offset's mean and
+        # covariance then, and the prediction's largest std since
+        self._outage: tuple[float, np.ndarray, np.ndarray, float] | None = None
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
         self.last_nis = math.nan  # normalised innovation squared of the last range
         self.last_s = math.nan  # and its innovation variance (m^2)
@@ -225,6 +228,46 @@ class RangeFusion(EkfCore):
         self.P[6, 6] = self.P[7, 7] = self._off_std**2
         self.history.widen(self.P.copy())
 
+    def _extrapolation(self, m: RangeMeas) -> float:
+        """The part of ``m``'s noise that the offset states take on: the error of a tracked
+        beacon predicted through its location line's outage.
+
+        The prediction is one extrapolation from the boat's last reports, and its error
+        (mostly the velocity's, times the time since) is every reply's of the outage.
+        Counted as each range's own noise, a few minutes of replies average it away: the
+        vehicle ends up sure of where it is from a boat that was not there, and when the
+        reports return, the ranges that disagree along the line of sight are refused
+        until one passes the gate and drags the estimate across it.  So through an
+        outage the offset, the error of the beacon's position, holds it too: its variance
+        grows as the extrapolation's does.  When the reports return, what the offset
+        learnt of the extrapolation is no longer the beacon's error, and the offset is
+        again what it was before the outage, carried on as its own error wanders.
+        """
+        if m.beacon != self.primary:
+            return 0.0
+        pred = m.beacon_predicted_std_m if math.isfinite(m.beacon_predicted_std_m) else 0.0
+        if pred > 0.0:
+            if self._outage is None:
+                self._outage = (self.t, self.x[6:8].copy(), self.P[6:8, 6:8].copy(), 0.0)
+            t0, x0, P0, before = self._outage
+            grown = max(pred * pred - before * before, 0.0)
+            self._outage = (t0, x0, P0, max(pred, before))
+            self.P[6, 6] += grown
+            self.P[7, 7] += grown
+        elif self._outage is not None:
+            t0, x0, P0, _ = self._outage
+            self._outage = None
+            phi = math.exp(-max(self.t - t0, 0.0) / self._off_tau)
+            self.x[6:8] = phi * x0
+            self.P[6:8, :] = 0.0
+            self.P[:, 6:8] = 0.0
+            self.P[6:8, 6:8] = phi * phi * P0 + (1.0 - phi * phi) * self._off_std**2 * np.eye(2)
+            self._steps.clear()  # the window's ranges cannot be solved across the change
+        else:
+            return 0.0
+        self.history.widen(self.P.copy())
+        return pred
+
     def _surveyed(self, m: RangeMeas) -> bool:
         """Whether ``m``'s beacon is a surveyed one (an error that does not wander) that the
         offset states do not track: the range biases carry its error."""
@@ -249,9 +292,10 @@ class RangeFusion(EkfCore):
             self.biases.surveyed(m.beacon, m.beacon_position_std_m)
             self.carry_considered_walk()  # a net: this filter now sees the water everywhere
         m = self._unbiased(m)
+        extrapolated = self._extrapolation(m)
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
-        r_var = m.std_m**2
+        r_var = max(m.std_m**2 - extrapolated**2, 1e-6)
         untracked = m.beacon != self.primary and not surveyed
         if untracked:
             # a wandering error of another beacon's position is not a state: count it as
@@ -413,6 +457,8 @@ class RangeFusion(EkfCore):
                     m.beacon,
                     m.beacon_position_std_m,
                     m.beacon_position_corr_s,
+                    m.beacon_predicted_std_m,
+                    m.beacon_predicted_from,
                 )
             )
         return rays

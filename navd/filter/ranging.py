@@ -83,11 +83,14 @@ class Ranging:
             beacon_lon=fix.lon,
             beacon_hd=surface_alt - fix.depth,
             vehicle_hd=surface_alt - depth_m,
-            # a predicted beacon's own error is range noise: the offset states model
-            # the error of its reports, not of the prediction
+            # a predicted beacon's error is in the range's noise, and named apart: it is
+            # shared by the outage's replies, and the filter estimating this beacon's
+            # position error takes it into those states
             std_m=math.hypot(self.nav.noise.range_std_m, fix.predicted_std_m),
             beacon_position_std_m=fix.position_std_m,
             beacon_position_corr_s=fix.position_corr_s,
+            beacon_predicted_std_m=fix.predicted_std_m,
+            beacon_predicted_from=rec.t - fix.predicted_s if fix.predicted_s > 0.0 else math.nan,
         )
         d = flt.range_update(meas)
         integrity.range(d.accepted, flt.last_nis)

@@ -54,6 +54,7 @@ _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, sca
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
 _SHORT_ALLOWED = 1  # ranges reading short beyond the noise a correction may leave
+_SAME_OUTAGE_S = 0.01  # predictions from reports this close in time: from the same report
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,6 +72,8 @@ class Ray:
     source: str  # the beacon's name
     beacon_std_m: float  # the part of sigma_m that is its beacon's position error
     beacon_corr_s: float  # ... and that error's correlation time (inf: a constant)
+    predicted_std_m: float = 0.0  # the part of sigma_m that is a predicted beacon's error
+    predicted_from: float = math.nan  # ... and the time of the report it was predicted from
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,7 +109,16 @@ class _Rays:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             rho = np.where(lag == 0.0, 1.0, np.exp(-lag / np.maximum(corr, 1e-9)[:, None]))
         self.shared = np.where(same, rho, 0.0) * np.outer(std, std)
-        self.own = np.maximum(self.sig**2 - std**2, 0.0)
+        # A beacon predicted through its location line's outage is one extrapolation from
+        # its last report: the error of the velocity it was carried at grows with the time
+        # since and is every prediction's, so the replies of one outage share it whole.
+        pred = np.array([r.predicted_std_m for r in rays])
+        start = np.array([r.predicted_from for r in rays])
+        with np.errstate(invalid="ignore"):
+            outage = same & (np.abs(start[:, None] - start[None, :]) < _SAME_OUTAGE_S)
+        pred = np.where(np.isfinite(start) & np.isfinite(pred), pred, 0.0)  # else its own
+        self.shared += np.where(outage, np.outer(pred, pred), 0.0)
+        self.own = np.maximum(self.sig**2 - std**2 - pred**2, 0.0)
         self.scale_var = scale_var if math.isfinite(scale_var) and scale_var > 0.0 else 0.0
 
     def weights(self, J: np.ndarray, idx: np.ndarray, long: np.ndarray) -> np.ndarray | None:
