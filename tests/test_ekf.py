@@ -304,3 +304,40 @@ def test_a_predicted_boats_error_is_shared_by_the_replies_of_its_outage() -> Non
     assert all(after)
     d2_old, _ = _through_an_outage(as_range_noise=True)
     assert max(d2_old) > 9.21  # outside the 99 % ellipse: the old count is misled
+
+
+def test_a_prediction_from_a_newer_report_starts_a_new_outage() -> None:
+    """What the offset learnt of one extrapolation is not the next one's error: a boat
+    predicted from a newer report is a new outage, its offset resumed from before the
+    first and its variance grown from there by the new prediction's alone."""
+    f = _ekf(pos_std=2.0)
+    blat, blon = _beacon(800.0, 0.0)
+    r = geodesy.ecef_distance(*_beacon(0.0, 0.0), -1.0, blat, blon, -1.0)
+
+    def ranged(predicted_std: float, since: float) -> None:
+        _run(f, 10.0, speed=0.0)
+        std = math.hypot(1.0, predicted_std)
+        f.range_update(
+            RangeMeas(
+                f.t,
+                f.t,
+                r,
+                "udb",
+                blat,
+                blon,
+                -1.0,
+                -1.0,
+                std,
+                7.0,
+                120.0,
+                beacon_predicted_std_m=predicted_std,
+                beacon_predicted_from=since,
+            )
+        )
+
+    ranged(0.0, math.nan)
+    for k in range(1, 6):
+        ranged(20.0 * k, 5.0)  # up to 100 m: across the line of sight nothing learns it
+    assert f.P[7, 7] > 50.0**2
+    ranged(3.0, 57.0)  # a newer report, 3 m of prediction error
+    assert f.P[7, 7] < 7.0**2 + 3.0**2 + 1.0

@@ -37,6 +37,7 @@ class BeaconFix:
     position_corr_s: float
     predicted_s: float = 0.0  # > 0: predicted this long after the last reported position
     predicted_std_m: float = 0.0  # the prediction's own error, beside position_std_m
+    predicted_from: float = math.nan  # the time of the report it was extrapolated from
 
 
 class BeaconResolver:
@@ -159,6 +160,7 @@ class BeaconResolver:
                 spec.position_corr_s,
                 predicted_s=max(age, 1e-3),
                 predicted_std_m=math.sqrt(var),
+                predicted_from=t_last,
             ),
             "ok",
         )

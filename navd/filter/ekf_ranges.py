@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -49,6 +49,18 @@ _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
 _RELIN_RANGES = 30  # accepted ranges the relinearisation solves together (within WINDOW_S)
 _RELIN_PASSES = 3
 _RELIN_TOL_M = 0.5  # linearisation points that move less than this are where they belong
+
+
+@dataclass(slots=True)
+class _Outage:
+    """The primary beacon predicted from one report: the offset states as they were when
+    its first prediction came, to be resumed when it ends."""
+
+    origin: float  # the time of the report it is extrapolated from
+    t: float
+    x: np.ndarray  # the offset's mean and covariance then
+    P: np.ndarray
+    std_m: float = 0.0  # the prediction's largest std since
 
 
 class RangeFusion(EkfCore):
@@ -77,9 +89,7 @@ class RangeFusion(EkfCore):
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
         self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
-        # while the primary beacon is predicted: when it began, the offset's mean and
-        # covariance then, and the prediction's largest std since
-        self._outage: tuple[float, np.ndarray, np.ndarray, float] | None = None
+        self._outage: _Outage | None = None  # while the primary beacon is predicted
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
         self.last_nis = math.nan  # normalised innovation squared of the last range
         self.last_s = math.nan  # and its innovation variance (m^2)
@@ -239,33 +249,35 @@ class RangeFusion(EkfCore):
         reports return, the ranges that disagree along the line of sight are refused
         until one passes the gate and drags the estimate across it.  So through an
         outage the offset, the error of the beacon's position, holds it too: its variance
-        grows as the extrapolation's does.  When the reports return, what the offset
-        learnt of the extrapolation is no longer the beacon's error, and the offset is
-        again what it was before the outage, carried on as its own error wanders.
+        grows as the extrapolation's does.  When the reports return (or the beacon is
+        extrapolated from a newer one), what the offset learnt of the extrapolation is no
+        longer the beacon's error, and the offset is again what it was before the outage,
+        carried on as its own error wanders.
         """
         if m.beacon != self.primary:
             return 0.0
         pred = m.beacon_predicted_std_m if math.isfinite(m.beacon_predicted_std_m) else 0.0
-        if pred > 0.0:
-            if self._outage is None:
-                self._outage = (self.t, self.x[6:8].copy(), self.P[6:8, 6:8].copy(), 0.0)
-            t0, x0, P0, before = self._outage
-            grown = max(pred * pred - before * before, 0.0)
-            self._outage = (t0, x0, P0, max(pred, before))
-            self.P[6, 6] += grown
-            self.P[7, 7] += grown
-        elif self._outage is not None:
-            t0, x0, P0, _ = self._outage
+        origin = m.beacon_predicted_from
+        o = self._outage
+        changed = o is not None and not (pred > 0.0 and (origin == o.origin or math.isnan(origin)))
+        if o is not None and changed:  # reported again, or extrapolated from a newer report
             self._outage = None
-            phi = math.exp(-max(self.t - t0, 0.0) / self._off_tau)
-            self.x[6:8] = phi * x0
+            phi = math.exp(-max(self.t - o.t, 0.0) / self._off_tau)
+            self.x[6:8] = phi * o.x
             self.P[6:8, :] = 0.0
             self.P[:, 6:8] = 0.0
-            self.P[6:8, 6:8] = phi * phi * P0 + (1.0 - phi * phi) * self._off_std**2 * np.eye(2)
+            self.P[6:8, 6:8] = phi * phi * o.P + (1.0 - phi * phi) * self._off_std**2 * np.eye(2)
             self._steps.clear()  # the window's ranges cannot be solved across the change
-        else:
-            return 0.0
-        self.history.widen(self.P.copy())
+        if pred > 0.0:
+            if self._outage is None:
+                self._outage = _Outage(origin, self.t, self.x[6:8].copy(), self.P[6:8, 6:8].copy())
+            grown = max(pred * pred - self._outage.std_m**2, 0.0)
+            self._outage.std_m = max(pred, self._outage.std_m)
+            self.P[6, 6] += grown
+            self.P[7, 7] += grown
+            changed = True
+        if changed:
+            self.history.widen(self.P.copy())
         return pred
 
     def _surveyed(self, m: RangeMeas) -> bool:

@@ -90,7 +90,7 @@ class Ranging:
             beacon_position_std_m=fix.position_std_m,
             beacon_position_corr_s=fix.position_corr_s,
             beacon_predicted_std_m=fix.predicted_std_m,
-            beacon_predicted_from=rec.t - fix.predicted_s if fix.predicted_s > 0.0 else math.nan,
+            beacon_predicted_from=fix.predicted_from,
         )
         d = flt.range_update(meas)
         integrity.range(d.accepted, flt.last_nis)

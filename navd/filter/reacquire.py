@@ -54,7 +54,6 @@ _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, sca
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
 _SHORT_ALLOWED = 1  # ranges reading short beyond the noise a correction may leave
-_SAME_OUTAGE_S = 0.01  # predictions from reports this close in time: from the same report
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,8 +113,7 @@ class _Rays:
         # since and is every prediction's, so the replies of one outage share it whole.
         pred = np.array([r.predicted_std_m for r in rays])
         start = np.array([r.predicted_from for r in rays])
-        with np.errstate(invalid="ignore"):
-            outage = same & (np.abs(start[:, None] - start[None, :]) < _SAME_OUTAGE_S)
+        outage = same & (start[:, None] == start[None, :])  # NaN, not predicted: never
         pred = np.where(np.isfinite(start) & np.isfinite(pred), pred, 0.0)  # else its own
         self.shared += np.where(outage, np.outer(pred, pred), 0.0)
         self.own = np.maximum(self.sig**2 - std**2 - pred**2, 0.0)
