@@ -156,6 +156,10 @@ class Resume:
     # ``P`` holds what that variance did to the position already
     range_scale: float | None = None
     range_scale_var: float | None = None
+    # the tracked beacon's outage under way (navd/filter/common.py, ``Held.outage``): its
+    # report's time, its start, the beacon offset's mean and covariance then, the
+    # prediction's largest std; ``P`` holds its error already
+    beacon_outage: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True, slots=True)

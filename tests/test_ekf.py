@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from navd import geodesy
-from navd.filter.common import RangeMeas
+from navd.filter.common import Held, RangeMeas
 from navd.filter.ekf import N_STATES, RangeEKF
 from navd.settings import NoiseConfig
 
@@ -341,3 +341,60 @@ def test_a_prediction_from_a_newer_report_starts_a_new_outage() -> None:
     assert f.P[7, 7] > 50.0**2
     ranged(3.0, 57.0)  # a newer report, 3 m of prediction error
     assert f.P[7, 7] < 7.0**2 + 3.0**2 + 1.0
+
+
+def _reply(f: RangeEKF, r: float, north: float, predicted_std: float, since: float) -> None:
+    """A reply 10 s on to the boat 800 m north, told to be at ``north``, predicted with
+    ``predicted_std`` from the report at ``since`` (0 and NaN: reported)."""
+    _run(f, 10.0, speed=0.0)
+    blat, blon = _beacon(north, 0.0)
+    std = math.hypot(1.0, predicted_std)
+    f.range_update(
+        RangeMeas(
+            f.t, f.t, r, "udb", blat, blon, -1.0, -1.0, std, 7.0, 120.0,
+            beacon_predicted_std_m=predicted_std, beacon_predicted_from=since,
+        )
+    )  # fmt: skip
+
+
+def _mid_outage(restart: str) -> tuple[list[float], float]:
+    """A boat predicted for a minute, its prediction falling 5 m a reply behind it along
+    the line of sight; after three replies navd goes on (``restart`` "none"), or restarts
+    from its checkpoint (a fresh filter) with the outage ("held") or without it
+    ("forgotten"); then the boat reports again.  Returns the across-sight offset std after
+    each predicted reply from the restart on, and the along-sight offset's mean after the
+    first report."""
+    f = _ekf(pos_std=2.0)
+    r = geodesy.ecef_distance(*_beacon(0.0, 0.0), -1.0, *_beacon(800.0, 0.0), -1.0)
+    for _ in range(6):
+        _reply(f, r, 800.0, 0.0, math.nan)
+    t_last = f.t
+    for k in range(1, 4):
+        _reply(f, r, 800.0 - 5.0 * k, 10.0 * k, t_last)
+    if restart != "none":
+        x, P, held = f.checkpoint()
+        assert held.outage is not None
+        f, t = RangeEKF(NoiseConfig(), 9.0, 4.0, 3), f.t
+        f.initialise(float(x[0]), float(x[1]), 1.0, t)
+        f.restore(x, P, 0.0, held if restart == "held" else Held(held.scale))
+    stds = []
+    for k in range(4, 7):
+        _reply(f, r, 800.0 - 5.0 * k, 10.0 * k, t_last)
+        stds.append(math.sqrt(f.P[7, 7]))
+    _reply(f, r, 800.0, 0.0, math.nan)
+    return stds, float(f.x[6])
+
+
+def test_a_restart_in_the_middle_of_an_outage_resumes_it() -> None:
+    """The checkpoint holds the outage under way: after a restart the offset grows with
+    the prediction's error as if navd had not stopped, and when the boat reports again
+    the offset is what it was before the outage, not what it learnt of the
+    extrapolation.  Without it, the restart took the outage to start then and kept the
+    extrapolation's error as the boat's once the reports returned."""
+    stds, north = _mid_outage("none")
+    held, held_north = _mid_outage("held")
+    assert stds[0] > 30.0
+    assert held == pytest.approx(stds, rel=0.05)
+    assert abs(north) < 1.0 and abs(held_north) < 1.0
+    _, old_north = _mid_outage("forgotten")
+    assert old_north > 5.0  # the prediction's lag kept as the boat's error

@@ -297,6 +297,25 @@ def test_a_resume_line_with_an_impossible_scale_is_refused_by_name(
         assert isinstance(snap, Resume) and snap.range_scale is None
 
 
+def test_a_resume_line_keeps_a_beacon_outage_and_refuses_a_malformed_one() -> None:
+    """``cmd_resume``'s ``beacon_outage`` goes through the log as written; a line with
+    other than 8 numbers is refused by name; in a checkpoint file anything but 8 numbers
+    is taken as no outage, and a number that is not finite refuses the checkpoint."""
+    line = {"type": "cmd_resume", "t": 10.0, "mode": "default", "x": [0.1] * 8,
+            "P": [0.0] * 64, "age_s": 5.0}  # fmt: skip
+    outage = [3.0, 4.0, 1.5, -2.0, 120.0, 5.0, 900.0, 30.0]
+    rec = parse_record({**line, "beacon_outage": outage})
+    assert isinstance(rec, Resume) and rec.beacon_outage == tuple(outage)
+    assert parse_record(json.loads(jsonlines.dumps_line(record_to_json(rec)))) == rec
+    for bad in (outage[:7], [*outage, 1.0], ["a"] * 8, 3.0):
+        with pytest.raises(ValueError, match="beacon_outage"):
+            parse_record({**line, "beacon_outage": bad})
+        snap = resume_record({**line, "beacon_outage": bad}, 10.0)
+        assert isinstance(snap, Resume) and snap.beacon_outage is None
+    refused = resume_record({**line, "beacon_outage": [math.inf] + outage[1:]}, 10.0)
+    assert isinstance(refused, str) and "beacon_outage" in refused
+
+
 def test_a_checkpoint_claims_no_more_than_the_filter_knew() -> None:
     """The scale's share of the position's uncertainty goes into the checkpoint's
     covariance, since the resumed filter starts its sensitivity to the scale afresh; a

@@ -144,6 +144,16 @@ def _numbers(v: object) -> tuple[float, ...]:
     return tuple(_number(x) for x in v)
 
 
+def _outage_or_none(v: object) -> tuple[float, ...] | None:
+    """A beacon outage as the filter held it, or None for anything else: the restart then
+    takes the outage to start with it, as before checkpoints held one."""
+    try:
+        held = _numbers(v)
+    except TypeError:
+        return None
+    return held if len(held) == 8 else None
+
+
 def resume_record(snap: JsonObject, t: float) -> Resume | str:
     """The record that resumes navigation at ``t`` from a loaded checkpoint, or why it
     cannot (the filter still judges the state itself)."""
@@ -159,6 +169,7 @@ def resume_record(snap: JsonObject, t: float) -> Resume | str:
             number_or_none(snap.get("depth_m")),
             number_or_none(snap.get("range_scale")),
             number_or_none(snap.get("range_scale_var")),
+            _outage_or_none(snap.get("beacon_outage")),
         )
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"

@@ -57,7 +57,7 @@ from navd import geodesy
 from navd.filter.common import (
     Corrections,
     GateDecision,
-    HeldScale,
+    Held,
     History,
     RangeMeas,
     StateEstimate,
@@ -198,16 +198,16 @@ class CalibrationBank:
         self.refuted = False
         self._t0 = t
 
-    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
         return self.followed.checkpoint()
 
     def restore(
-        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         """A checkpoint: the config filter's state; the uncalibrated belief the same, its
         calibration's covariance scaled as its priors are to the config's (the range
-        scale both believe alike)."""
-        self.config.restore(x, P, grow_m2, scale)
+        scale, and a beacon outage under way, both believe alike)."""
+        self.config.restore(x, P, grow_m2, held)
         a, b = self.config.noise, self.uncal.noise
         k = np.ones(len(x))
         k[2:6] = (
@@ -216,7 +216,7 @@ class CalibrationBank:
             b.heading_bias_init_std_deg / a.heading_bias_init_std_deg,
             b.speed_scale_init_std / a.speed_scale_init_std,
         )
-        self.uncal.restore(x, P * np.outer(k, k), grow_m2, scale)
+        self.uncal.restore(x, P * np.outer(k, k), grow_m2, held)
         self.w_uncal = _PRIOR
         # a checkpoint of a refuted config's run holds the uncalibrated filter's
         # calibration, and the next update refutes the priors again

@@ -201,6 +201,18 @@ class Corrections:
 HeldScale = tuple[float, float]
 
 
+@dataclass(frozen=True, slots=True)
+class Held:
+    """What a restart resumes beside the state vector and its covariance; None where the
+    mode has no such thing or holds none now."""
+
+    scale: HeldScale | None = None
+    # the tracked beacon's outage under way: its report's time, its start, the offset
+    # states' mean (n, e) and covariance (nn, ne, ee) then, the prediction's largest std
+    # (navd/filter/ekf_ranges.py, RangeFusion.outage_held)
+    outage: tuple[float, ...] | None = None
+
+
 class NavFilter(Protocol):
     """What the navigator needs of a filter mode.
 
@@ -233,12 +245,12 @@ class NavFilter(Protocol):
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None: ...
 
-    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
         """What a restart resumes from (navd/filter/navresume.py): the state, its
-        covariance, and the ranges' common scale as learnt (None: the mode has none)."""
+        covariance, and what else the mode holds that a restart needs."""
 
     def restore(
-        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         """Navigate on from ``checkpoint``'s, the position variance grown by ``grow_m2``."""
 

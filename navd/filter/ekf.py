@@ -26,7 +26,7 @@ import numpy as np
 
 from navd import geodesy
 from navd.filter import ekf_step
-from navd.filter.common import Corrections, HeldScale, StateEstimate
+from navd.filter.common import Corrections, Held, StateEstimate
 from navd.filter.ekf_core import CAL_MEAN_S, N_STATES
 from navd.filter.ekf_ranges import RangeFusion
 from navd.filter.lsfix import Fix
@@ -74,27 +74,31 @@ class RangeEKF(RangeFusion):
         self.path[0] = t
         self.t_anchor = t
         self._forget_ranges()  # ranges from before would not chain to this state
+        self._offset_held = False  # the offset states start again at their prior
         self.biases.restart(self.path)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
-    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
         """The state, and the covariance with what the range biases' uncertainty adds to
         it folded in: the resumed filter holds no sensitivity to them yet."""
         s, m, added = self.biases.held(self.path)
         P = self.P + added
-        return self.x.copy(), P, (s, m)
+        return self.x.copy(), P, Held((s, m), self.outage_held())
 
     def restore(
-        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         """A checkpoint's state (a restart), its position variance grown by ``grow_m2``;
-        the range scale as it held it, or back at its prior if it held none."""
+        the range scale as it held it, or back at its prior if it held none; the tracked
+        beacon's outage as it was, if one was under way."""
+        held = held or Held()
         self.x, self.P = x.copy(), P.copy()
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
-        if scale is None or not self.biases.resume(self.path, *scale):
+        if held.scale is None or not self.biases.resume(self.path, *held.scale):
             self.biases.restart(self.path)
+        self.resume_outage(held.outage)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

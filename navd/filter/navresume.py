@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from navd.filter.common import Held
 from navd.filter.navparts import NavParts
 from navd.records import Resume
 
@@ -15,11 +16,11 @@ class Resuming(NavParts):
     def snapshot(self) -> dict[str, object] | None:
         """What a restart needs to resume navigating (None: nothing to resume yet): the
         filter's state and covariance, the ranges' scale as learnt, the depth gauge's zero,
-        the water's height."""
+        the water's height, the tracked beacon's outage under way."""
         f = self.filter
         if not f.initialised:
             return None
-        x, P, scale = f.checkpoint()
+        x, P, held = f.checkpoint()
         snap: dict[str, object] = {
             "mode": self.cfg.navigation.filter,
             "x": x.tolist(),
@@ -30,8 +31,10 @@ class Resuming(NavParts):
             "lat": math.degrees(float(x[0])),
             "lon": math.degrees(float(x[1])),
         }
-        if scale is not None:
-            snap["range_scale"], snap["range_scale_var"] = scale
+        if held.scale is not None:
+            snap["range_scale"], snap["range_scale_var"] = held.scale
+        if held.outage is not None:
+            snap["beacon_outage"] = list(held.outage)
         return snap
 
     def _on_resume(self, rec: Resume) -> None:
@@ -55,10 +58,10 @@ class Resuming(NavParts):
             return
         grow = (self.cfg.checkpoint.drift_mps * rec.age_s) ** 2
         self.filter.initialise(float(x[0]), float(x[1]), 1.0, rec.t)
-        held = None
+        scale = None
         if rec.range_scale is not None and rec.range_scale_var is not None:
-            held = (rec.range_scale, rec.range_scale_var)
-        self.filter.restore(x, P, grow, held)
+            scale = (rec.range_scale, rec.range_scale_var)
+        self.filter.restore(x, P, grow, Held(scale, rec.beacon_outage))
         self._t_filter = rec.t
         self.dr.reset(float(x[0]), float(x[1]))
         if rec.surface_bar is not None:

@@ -20,7 +20,7 @@ from navd import geodesy
 from navd.filter.common import (
     Corrections,
     GateDecision,
-    HeldScale,
+    Held,
     History,
     RangeMeas,
     StateEstimate,
@@ -153,11 +153,11 @@ class ThesisEKF:
         self.initialised = True
         self.history.add(t, np.eye(4), self.x.copy(), self.P.copy())
 
-    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
-        return self.x.copy(), self.P.copy(), None
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
+        return self.x.copy(), self.P.copy(), Held()
 
     def restore(
-        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         # the thesis' covariance is in radians squared: the growth is converted there
         self.x, self.P = x.copy(), P.copy()

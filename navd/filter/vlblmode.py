@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import Corrections, GateDecision, HeldScale, RangeMeas, StateEstimate
+from navd.filter.common import Corrections, GateDecision, Held, RangeMeas, StateEstimate
 from navd.filter.lsfix import Fix
 
 
@@ -37,11 +37,11 @@ class VlblMode:
         self.initialised = True
         self.t = t
 
-    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, HeldScale | None]:
-        return self.x.copy(), self.P.copy(), None
+    def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
+        return self.x.copy(), self.P.copy(), Held()
 
     def restore(
-        self, x: np.ndarray, P: np.ndarray, grow_m2: float, scale: HeldScale | None = None
+        self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         self.x, self.P = x.copy(), P + np.eye(2) * grow_m2
 

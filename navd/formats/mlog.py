@@ -153,9 +153,14 @@ def _parse_resume(o: JsonObject, t: float) -> Resume:
     P = _numbers(o, "P", 256)
     if len(P) != len(x) ** 2:
         raise _Bad("field 'P' must hold len(x) squared numbers")
+    outage = None
+    if o.get("beacon_outage") is not None:
+        outage = _numbers(o, "beacon_outage", 8)
+        if len(outage) != 8:
+            raise _Bad("field 'beacon_outage' must hold 8 numbers")
     return Resume(
         t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
-        _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"),
+        _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"), outage,
     )
 
 
