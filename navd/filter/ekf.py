@@ -74,7 +74,7 @@ class RangeEKF(RangeFusion):
         self.path[0] = t
         self.t_anchor = t
         self._forget_ranges()  # ranges from before would not chain to this state
-        self._offset_held = False  # the offset states start again at their prior
+        self._outage = None  # the offset states start again at their prior
         self.biases.restart(self.path)
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 

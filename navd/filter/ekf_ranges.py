@@ -90,9 +90,6 @@ class RangeFusion(EkfCore):
         self.reacquisitions = 0
         self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
         self._outage: _Outage | None = None  # while the primary beacon is predicted
-        # restored in the middle of an outage: the offset states hold its error, which the
-        # first range's adoption of the beacon must not set back to the beacon's own
-        self._offset_held = False
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
         self.last_nis = math.nan  # normalised innovation squared of the last range
         self.last_s = math.nan  # and its innovation variance (m^2)
@@ -238,9 +235,8 @@ class RangeFusion(EkfCore):
         self.primary = m.beacon
         self._off_std = m.beacon_position_std_m
         self._off_tau = m.beacon_position_corr_s
-        if not self._offset_held:
+        if self._outage is None:  # else a restart's (resume_outage): the offset holds its error
             self.P[6, 6] = self.P[7, 7] = self._off_std**2
-        self._offset_held = False
         self.history.widen(self.P.copy())
 
     def _extrapolation(self, m: RangeMeas) -> float:
@@ -300,7 +296,6 @@ class RangeFusion(EkfCore):
         keep what the offset learnt of the prediction as the beacon's own error once the
         reports return.  Anything but a well-formed outage is none."""
         self._outage = None
-        self._offset_held = False
         if held is None or len(held) != 8 or not all(math.isfinite(v) for v in held):
             return
         origin, t, xn, xe, pnn, pne, pee, std = held
@@ -308,7 +303,6 @@ class RangeFusion(EkfCore):
         if std < 0.0 or pnn < 0.0 or pee < 0.0 or pne * pne > pnn * pee:
             return
         self._outage = _Outage(origin, t, np.array([xn, xe]), P, std)
-        self._offset_held = self.primary is None
 
     def _surveyed(self, m: RangeMeas) -> bool:
         """Whether ``m``'s beacon is a surveyed one (an error that does not wander) that the
