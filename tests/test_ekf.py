@@ -184,6 +184,25 @@ def test_a_multipath_burst_does_not_open_the_gate_to_the_next_outlier() -> None:
     assert math.hypot(e, n) < 3.0
 
 
+def test_it_counts_how_often_replies_read_long_past_the_gate() -> None:
+    """What a re-acquisition takes as the chance that a run of long replies is a
+    reflector's (navd/filter/reacquire.py): one reply in three 100 m long, against none."""
+    beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
+
+    def fraction(every: int) -> float:
+        f = _ekf(pos_std=2.0)
+        for k in range(60):
+            blat, blon = _beacon(*beacons[k % 3])
+            extra = 100.0 if every and k % every == every - 1 else 0.0
+            r = geodesy.ecef_distance(LAT, LON, -1.0, blat, blon, -1.0) + extra
+            f.t += 10.0
+            f.range_update(RangeMeas(f.t, f.t, r, "b", blat, blon, -1, -1, 1.0))
+        return f.long_refused
+
+    assert fraction(0) == 0.0
+    assert fraction(3) == pytest.approx(1.0 / 3.0, abs=0.03)
+
+
 def test_a_re_acquired_current_carries_the_calibrations_uncertainty() -> None:
     """A compass reading 10 degrees low drifts the dead reckoning across the track, and
     the re-acquisition fit, which moves only position and current, reads that drift as

@@ -178,3 +178,43 @@ def test_a_long_reply_inside_the_inlier_threshold_pulls_as_the_filter_lets_it(
     monkeypatch.setattr(reacquire, "HUBER_K", math.inf)
     full = error(reacquire.find(rays, *args))
     assert weighed < 0.6 * full
+
+
+def _reflected(length_m: float) -> list[reacquire.Ray]:
+    """Twelve replies from a vehicle exactly where its estimate is, each lengthened
+    ``length_m`` by a reflector that holds for the whole window (a hull, a layer)."""
+    rays = _exact(np.zeros(2), np.zeros(2))
+    return [replace(r, range_m=r.range_m + length_m) for r in rays]
+
+
+def test_a_run_of_replies_all_reading_long_keeps_the_estimate_it_would_replace() -> None:
+    """A reflector that lengthens every reply alike looks like a drift along the line of
+    sight, and the fit moves there.  Where replies often read long, the fit's ellipse
+    still holds the estimate it replaces (the truth here); where they never have, the fit
+    is taken as it claims."""
+    rays = _reflected(25.0)
+    args = ((0.0, 0.0), np.eye(2) * 1e4, np.eye(2) * 0.01, 300.0, 2.0, 6, 3, 500.0, 1)
+
+    def truth_d2(long_refused: float) -> float:
+        h = reacquire.find(rays, *args, long_refused=long_refused)
+        assert h is not None
+        th = np.array([h.d_north, h.d_east, h.dc_north, h.dc_east])
+        assert math.hypot(h.d_north, h.d_east) > 15.0  # it does move, as a drift would
+        return float(th @ np.linalg.solve(h.cov, th))  # of the truth, which is no correction
+
+    assert truth_d2(0.0) > 4.0 * CHI2_4DOF_95
+    assert truth_d2(0.4) <= CHI2_4DOF_95
+    # with refused replies that read short, no reflector explains them: no widening
+    drift = _exact(np.array([40.0, -25.0]), np.array([0.08, -0.05]))
+    assert any(r.range_m < p for r, p in zip(drift, _predicted0(drift), strict=True))
+    plain = reacquire.find(drift, *args)
+    wide = reacquire.find(drift, *args, long_refused=0.4)
+    assert plain is not None and wide is not None
+    assert np.allclose(plain.cov, wide.cov)
+
+
+def _predicted0(rays: list[reacquire.Ray]) -> np.ndarray:
+    """The ranges the estimate as it stands predicts."""
+    r = reacquire._Rays(rays, 0.0)
+    pred, _ = r.predict(np.zeros(4), np.arange(len(rays)))
+    return pred

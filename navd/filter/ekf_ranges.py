@@ -46,6 +46,7 @@ from navd.settings import NoiseConfig
 _WINDOW_RANGES = 12
 _MIN_SUPPORT = 6  # ranges that must agree on a re-acquisition
 _REACQUIRED_STD_M = 200.0  # a fit looser than this leaves the estimate as it is
+_LONG_MEMORY = 100.0  # ranges over which how often replies read long is forgotten
 _RELIN_RANGES = 30  # accepted ranges the relinearisation solves together (within WINDOW_S)
 _RELIN_PASSES = 3
 _RELIN_TOL_M = 0.5  # linearisation points that move less than this are where they belong
@@ -88,6 +89,9 @@ class RangeFusion(EkfCore):
         # recent gate decisions: (accepted, residual); see _reacquire
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
+        # how often replies read long past the gate here (a site's reflectors), as the
+        # forgotten sums of that indicator and of the ranges (see reacquire.find)
+        self._long_refused = (0.0, 0.0)
         self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
         self._outage: _Outage | None = None  # while the primary beacon is predicted
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
@@ -354,7 +358,9 @@ class RangeFusion(EkfCore):
         self.last_nis = residual * residual / S
         while self._window and m.t - self._window[0][0].t > WINDOW_S:
             self._window.popleft()
-        if residual * residual > chi2 * S:
+        refused = residual * residual > chi2 * S
+        self._count_long(refused and residual > 0.0)
+        if refused:
             self._window.append((m, True))
             self._recent.append((False, residual))
             rejected = [r for ok, r in self._recent if not ok]
@@ -393,6 +399,17 @@ class RangeFusion(EkfCore):
         self._recent.append((True, residual))
         self.history.correct(self.x.copy(), self.P.copy())
         return GateDecision(True, residual, gate_m, "ok")
+
+    def _count_long(self, long_refused: bool) -> None:
+        keep = 1.0 - 1.0 / _LONG_MEMORY
+        hits, n = self._long_refused
+        self._long_refused = (keep * hits + long_refused, keep * n + 1.0)
+
+    @property
+    def long_refused(self) -> float:
+        """The fraction of recent ranges the gate refused as reading long."""
+        hits, n = self._long_refused
+        return hits / n if n > 0.0 else 0.0
 
     def _shift(self, shift: np.ndarray, hd: float) -> None:
         """Move the state by what the range biases just learnt did to it
@@ -521,6 +538,7 @@ class RangeFusion(EkfCore):
             _REACQUIRED_STD_M,
             seed=self.reacquisitions * 7919 + self.reacquire_refused,
             scale_var=self.biases.m,
+            long_refused=self.long_refused,
         )
         if hyp is None:
             return False

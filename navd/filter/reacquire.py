@@ -54,6 +54,7 @@ _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, sca
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
 _SHORT_ALLOWED = 1  # ranges reading short beyond the noise a correction may leave
+_REFLECTOR_MAX = 0.5  # the weight a reflector's explanation gets, at most (see find)
 
 
 @dataclass(frozen=True, slots=True)
@@ -253,13 +254,23 @@ def find(
     max_std_m: float,
     seed: int,
     scale_var: float = 0.0,
+    long_refused: float = 0.0,
 ) -> Hypothesis | None:
     """The correction most of the recent ranges agree on, or None when they do not agree.
 
     It must also explain at least ``min_rejected`` of the ranges the gate refused:
     a correction the accepted ranges alone support is no news, and replacing a
     converged covariance by a fit over a few ranges would throw information away.
-    ``scale_var`` is the variance of the ranges' scale error as the filter knows it.
+    ``scale_var`` is the variance of the ranges' scale error as the filter knows it;
+    ``long_refused``, the fraction of recent replies the gate refused as reading long.
+
+    When every refused range it explains read long, a reflector that lengthened them
+    (a hull, a layer, for minutes) explains them as well, with no correction: such runs
+    bent re-acquisitions by 20 to 40 m along the line of sight while the fit claimed 8
+    (BENCHMARKS.md, "A reflector's run of long replies").  Their sign cannot tell the
+    two apart, and how often this site's replies read long is the chance of the second:
+    the covariance about the fit's mean then holds the estimate it replaces with that
+    weight (at most a half), ``cov + w th th^T``, the spread of the two explanations.
     """
     n = len(rays)
     if n < min_support:
@@ -297,7 +308,8 @@ def find(
         return None
     explained = mask & r.rejected
     pred0, _ = r.predict(np.zeros(4), np.arange(n))
-    if not np.any(explained & (r.z < pred0)):
+    all_long = not np.any(explained & (r.z < pred0))
+    if all_long:
         # every refused range it explains read long, which is also what a burst of
         # multipath looks like: ask for twice the evidence (a real drift keeps adding it)
         min_rejected *= 2
@@ -315,4 +327,15 @@ def find(
         return None  # the agreeing ranges do not pin the position (one line of sight)
     if math.hypot(current[0] + th[2], current[1] + th[3]) > max_current_mps:
         return None
+    cov = _with_reflector(cov, th, long_refused if all_long else 0.0)
     return Hypothesis(float(th[0]), float(th[1]), float(th[2]), float(th[3]), cov, count, n)
+
+
+def _with_reflector(cov: np.ndarray, th: np.ndarray, long_refused: float) -> np.ndarray:
+    """The fit's covariance about its mean, with "no correction, a reflector" weighed by
+    how often replies read long (see :func:`find`)."""
+    w = min(long_refused, _REFLECTOR_MAX)
+    if not w > 0.0:  # NaN too: no evidence of reflectors
+        return cov
+    wider: np.ndarray = cov + w * np.outer(th, th)
+    return wider
