@@ -90,7 +90,8 @@ class RangeFusion(EkfCore):
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
         # how often replies read long past the gate here (a site's reflectors), as the
-        # forgotten sums of that indicator and of the ranges (see reacquire.find)
+        # forgotten sums of that indicator and of the ranges (see reacquire.find); the
+        # refusals of a streak are left out, since a drifted estimate refuses them too
         self._long_refused = (0.0, 0.0)
         self.reacquire_refused = 0  # rejection streaks the recent ranges did not explain
         self._outage: _Outage | None = None  # while the primary beacon is predicted
@@ -358,18 +359,20 @@ class RangeFusion(EkfCore):
         self.last_nis = residual * residual / S
         while self._window and m.t - self._window[0][0].t > WINDOW_S:
             self._window.popleft()
-        refused = residual * residual > chi2 * S
-        self._count_long(refused and residual > 0.0)
-        if refused:
+        if residual * residual > chi2 * S:
             self._window.append((m, True))
             self._recent.append((False, residual))
             rejected = [r for ok, r in self._recent if not ok]
-            if len(rejected) >= self.reacquire_after:
-                if self._reacquire(m):
-                    return GateDecision(False, residual, gate_m, "gate_reacquire")
-                self.reacquire_refused += 1
+            if len(rejected) < self.reacquire_after:
+                # a refusal among accepted ranges: an outlier, not an estimate gone wrong
+                self._count_long(residual > 0.0)
+                return GateDecision(False, residual, gate_m, "gate")
+            if self._reacquire(m):
+                return GateDecision(False, residual, gate_m, "gate_reacquire")
+            self.reacquire_refused += 1
             return GateDecision(False, residual, gate_m, "gate")
         self._window.append((m, False))
+        self._count_long(False)
         self._nis.append(self.last_nis)
         if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
             # Accepted, but the recent ranges together say the covariance claims too
