@@ -264,13 +264,15 @@ def find(
     ``scale_var`` is the variance of the ranges' scale error as the filter knows it;
     ``long_refused``, the fraction of recent replies the gate refused as reading long.
 
-    When every refused range it explains read long, a reflector that lengthened them
-    (a hull, a layer, for minutes) explains them as well, with no correction: such runs
-    bent re-acquisitions by 20 to 40 m along the line of sight while the fit claimed 8
-    (BENCHMARKS.md, "A reflector's run of long replies").  Their sign cannot tell the
-    two apart, and how often this site's replies read long is the chance of the second:
-    the covariance about the fit's mean then holds the estimate it replaces with that
-    weight (at most a half), ``cov + w th th^T``, the spread of the two explanations.
+    When no refused range it explains reads short (all long, or none refused: a fit on
+    accepted ranges whose NIS said the covariance claimed too much), a reflector that
+    lengthened them (a hull, a layer, for minutes) explains them as well, with no
+    correction: such runs bent re-acquisitions by 20 to 40 m along the line of sight
+    while the fit claimed 8 (BENCHMARKS.md, "A reflector's run of long replies").  Their
+    sign cannot tell the two apart, and how often this site's replies read long is the
+    chance of the second: the covariance about the fit's mean then holds the estimate it
+    replaces with that weight (at most a half), ``cov + w th th^T``, the spread of the
+    two explanations.
     """
     n = len(rays)
     if n < min_support:
