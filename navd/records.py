@@ -160,6 +160,9 @@ class Resume:
     # report's time, its start, the beacon offset's mean and covariance then, the
     # prediction's largest std; ``P`` holds its error already
     beacon_outage: tuple[float, ...] | None = None
+    # how often replies read long past the gate (navd/filter/common.py,
+    # ``Held.long_refused``): the forgotten counts of such refusals and of ranges
+    long_refused: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -203,6 +203,29 @@ def test_it_counts_how_often_replies_read_long_past_the_gate() -> None:
     assert fraction(3) == pytest.approx(1.0 / 3.0, abs=0.03)
 
 
+def test_a_restart_goes_on_counting_long_replies() -> None:
+    """A site's reflectors do not leave with the process: the resumed filter starts from
+    the checkpoint's counts; counts that cannot be are none."""
+    f = _ekf(pos_std=2.0)
+    blat, blon = _beacon(150.0, 150.0)
+    r = geodesy.ecef_distance(LAT, LON, -1.0, blat, blon, -1.0)
+    for k in range(20):
+        f.t += 10.0
+        long = 100.0 if k % 4 == 3 else 0.0
+        f.range_update(RangeMeas(f.t, f.t, r + long, "b", blat, blon, -1, -1, 1.0))
+    assert f.long_refused == pytest.approx(0.25, abs=0.03)
+    x, P, held = f.checkpoint()
+    for counts, expected in (
+        (held.long_refused, f.long_refused),
+        (None, 0.0),
+        ((5.0, 2.0), 0.0),  # more long refusals than ranges
+        ((math.nan, 10.0), 0.0),
+    ):
+        g = _ekf()
+        g.restore(x, P, 0.0, Held(held.scale, held.outage, counts))
+        assert g.long_refused == pytest.approx(expected)
+
+
 def test_a_re_acquired_current_carries_the_calibrations_uncertainty() -> None:
     """A compass reading 10 degrees low drifts the dead reckoning across the track, and
     the re-acquisition fit, which moves only position and current, reads that drift as

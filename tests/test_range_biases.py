@@ -316,6 +316,21 @@ def test_a_resume_line_keeps_a_beacon_outage_and_refuses_a_malformed_one() -> No
     assert isinstance(refused, str) and "beacon_outage" in refused
 
 
+def test_a_resume_line_keeps_how_often_replies_read_long() -> None:
+    """``cmd_resume``'s ``long_refused`` goes through the log as written and is refused by
+    name with other than 2 numbers; in a checkpoint file anything else is no count."""
+    line = {"type": "cmd_resume", "t": 10.0, "mode": "default", "x": [0.1] * 8,
+            "P": [0.0] * 64, "age_s": 5.0}  # fmt: skip
+    rec = parse_record({**line, "long_refused": [12.5, 97.0]})
+    assert isinstance(rec, Resume) and rec.long_refused == (12.5, 97.0)
+    assert parse_record(json.loads(jsonlines.dumps_line(record_to_json(rec)))) == rec
+    for bad in ([1.0], [1.0, 2.0, 3.0], ["a", "b"], 3.0):
+        with pytest.raises(ValueError, match="long_refused"):
+            parse_record({**line, "long_refused": bad})
+        snap = resume_record({**line, "long_refused": bad}, 10.0)
+        assert isinstance(snap, Resume) and snap.long_refused is None
+
+
 def test_a_checkpoint_claims_no_more_than_the_filter_knew() -> None:
     """The scale's share of the position's uncertainty goes into the checkpoint's
     covariance, since the resumed filter starts its sensitivity to the scale afresh; a

@@ -154,6 +154,16 @@ def _outage_or_none(v: object) -> tuple[float, ...] | None:
     return held if len(held) == 8 else None
 
 
+def _counts_or_none(v: object) -> tuple[float, float] | None:
+    """How often replies read long as the filter held it, or None for anything else: the
+    restart then counts again from nothing, as before checkpoints held it."""
+    try:
+        held = _numbers(v)
+    except TypeError:
+        return None
+    return (held[0], held[1]) if len(held) == 2 else None
+
+
 def resume_record(snap: JsonObject, t: float) -> Resume | str:
     """The record that resumes navigation at ``t`` from a loaded checkpoint, or why it
     cannot (the filter still judges the state itself)."""
@@ -170,6 +180,7 @@ def resume_record(snap: JsonObject, t: float) -> Resume | str:
             number_or_none(snap.get("range_scale")),
             number_or_none(snap.get("range_scale_var")),
             _outage_or_none(snap.get("beacon_outage")),
+            _counts_or_none(snap.get("long_refused")),
         )
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"

@@ -211,6 +211,9 @@ class Held:
     # states' mean (n, e) and covariance (nn, ne, ee) then, the prediction's largest std
     # (navd/filter/ekf_ranges.py, RangeFusion.outage_held)
     outage: tuple[float, ...] | None = None
+    # how often replies read long past the gate: the forgotten counts of such refusals and
+    # of ranges (navd/filter/ekf_ranges.py, RangeFusion.long_refused)
+    long_refused: tuple[float, float] | None = None
 
 
 class NavFilter(Protocol):

@@ -83,14 +83,14 @@ class RangeEKF(RangeFusion):
         it folded in: the resumed filter holds no sensitivity to them yet."""
         s, m, added = self.biases.held(self.path)
         P = self.P + added
-        return self.x.copy(), P, Held((s, m), self.outage_held())
+        return self.x.copy(), P, Held((s, m), self.outage_held(), self.long_refused_held())
 
     def restore(
         self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
     ) -> None:
         """A checkpoint's state (a restart), its position variance grown by ``grow_m2``;
         the range scale as it held it, or back at its prior if it held none; the tracked
-        beacon's outage as it was, if one was under way."""
+        beacon's outage as it was, if one was under way; how often replies read long."""
         held = held or Held()
         self.x, self.P = x.copy(), P.copy()
         self.P[0, 0] += grow_m2
@@ -99,6 +99,7 @@ class RangeEKF(RangeFusion):
         if held.scale is None or not self.biases.resume(self.path, *held.scale):
             self.biases.restart(self.path)
         self.resume_outage(held.outage)
+        self.resume_long_refused(held.long_refused)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

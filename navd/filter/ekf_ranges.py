@@ -414,6 +414,20 @@ class RangeFusion(EkfCore):
         hits, n = self._long_refused
         return hits / n if n > 0.0 else 0.0
 
+    def long_refused_held(self) -> tuple[float, float]:
+        """Its counts as a checkpoint holds them (``Held.long_refused``)."""
+        return self._long_refused
+
+    def resume_long_refused(self, held: tuple[float, float] | None) -> None:
+        """A restart goes on counting where the checkpoint left off: a site's reflectors
+        do not leave with the process.  Counts that cannot be are none."""
+        self._long_refused = (0.0, 0.0)
+        if held is None or len(held) != 2 or not all(math.isfinite(v) for v in held):
+            return
+        hits, n = held
+        if 0.0 <= hits <= n:
+            self._long_refused = (hits, n)
+
     def _shift(self, shift: np.ndarray, hd: float) -> None:
         """Move the state by what the range biases just learnt did to it
         (navd/filter/range_biases.py); the relinearised window's last state with it."""

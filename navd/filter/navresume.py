@@ -16,7 +16,8 @@ class Resuming(NavParts):
     def snapshot(self) -> dict[str, object] | None:
         """What a restart needs to resume navigating (None: nothing to resume yet): the
         filter's state and covariance, the ranges' scale as learnt, the depth gauge's zero,
-        the water's height, the tracked beacon's outage under way."""
+        the water's height, the tracked beacon's outage under way, how often replies read
+        long."""
         f = self.filter
         if not f.initialised:
             return None
@@ -35,6 +36,8 @@ class Resuming(NavParts):
             snap["range_scale"], snap["range_scale_var"] = held.scale
         if held.outage is not None:
             snap["beacon_outage"] = list(held.outage)
+        if held.long_refused is not None:
+            snap["long_refused"] = list(held.long_refused)
         return snap
 
     def _on_resume(self, rec: Resume) -> None:
@@ -61,7 +64,7 @@ class Resuming(NavParts):
         scale = None
         if rec.range_scale is not None and rec.range_scale_var is not None:
             scale = (rec.range_scale, rec.range_scale_var)
-        self.filter.restore(x, P, grow, Held(scale, rec.beacon_outage))
+        self.filter.restore(x, P, grow, Held(scale, rec.beacon_outage, rec.long_refused))
         self._t_filter = rec.t
         self.dr.reset(float(x[0]), float(x[1]))
         if rec.surface_bar is not None:

@@ -158,9 +158,16 @@ def _parse_resume(o: JsonObject, t: float) -> Resume:
         outage = _numbers(o, "beacon_outage", 8)
         if len(outage) != 8:
             raise _Bad("field 'beacon_outage' must hold 8 numbers")
+    long_refused = None
+    if o.get("long_refused") is not None:
+        counts = _numbers(o, "long_refused", 2)
+        if len(counts) != 2:
+            raise _Bad("field 'long_refused' must hold 2 numbers")
+        long_refused = (counts[0], counts[1])
     return Resume(
         t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
         _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"), outage,
+        long_refused,
     )
 
 
