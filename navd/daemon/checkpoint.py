@@ -144,24 +144,19 @@ def _numbers(v: object) -> tuple[float, ...]:
     return tuple(_number(x) for x in v)
 
 
-def _outage_or_none(v: object) -> tuple[float, ...] | None:
-    """A beacon outage as the filter held it, or None for anything else: the restart then
-    takes the outage to start with it, as before checkpoints held one."""
+def _held_or_none(v: object, n: int) -> tuple[float, ...] | None:
+    """``n`` numbers as the filter held them (a beacon outage, how often replies read
+    long), or None for anything else: the restart then starts that part afresh, as
+    before checkpoints held it."""
     try:
         held = _numbers(v)
     except TypeError:
         return None
-    return held if len(held) == 8 else None
+    return held if len(held) == n else None
 
 
-def _counts_or_none(v: object) -> tuple[float, float] | None:
-    """How often replies read long as the filter held it, or None for anything else: the
-    restart then counts again from nothing, as before checkpoints held it."""
-    try:
-        held = _numbers(v)
-    except TypeError:
-        return None
-    return (held[0], held[1]) if len(held) == 2 else None
+def _pair(v: tuple[float, ...] | None) -> tuple[float, float] | None:
+    return None if v is None else (v[0], v[1])
 
 
 def resume_record(snap: JsonObject, t: float) -> Resume | str:
@@ -179,8 +174,8 @@ def resume_record(snap: JsonObject, t: float) -> Resume | str:
             number_or_none(snap.get("depth_m")),
             number_or_none(snap.get("range_scale")),
             number_or_none(snap.get("range_scale_var")),
-            _outage_or_none(snap.get("beacon_outage")),
-            _counts_or_none(snap.get("long_refused")),
+            _held_or_none(snap.get("beacon_outage"), 8),
+            _pair(_held_or_none(snap.get("long_refused"), 2)),
         )
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"

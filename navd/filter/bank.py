@@ -206,7 +206,8 @@ class CalibrationBank:
     ) -> None:
         """A checkpoint: the config filter's state; the uncalibrated belief the same, its
         calibration's covariance scaled as its priors are to the config's (the range
-        scale, and a beacon outage under way, both believe alike)."""
+        scale, a beacon outage under way and how often replies read long, both believe
+        alike)."""
         self.config.restore(x, P, grow_m2, held)
         a, b = self.config.noise, self.uncal.noise
         k = np.ones(len(x))

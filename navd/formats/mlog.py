@@ -145,6 +145,16 @@ def _numbers(obj: JsonObject, key: str, max_len: int = 256) -> tuple[float, ...]
     return tuple(out)
 
 
+def _exactly(o: JsonObject, key: str, n: int) -> tuple[float, ...] | None:
+    """An optional field of exactly ``n`` numbers (None: absent)."""
+    if o.get(key) is None:
+        return None
+    v = _numbers(o, key, n)
+    if len(v) != n:
+        raise _Bad(f"field '{key}' must hold {n} numbers")
+    return v
+
+
 def _parse_resume(o: JsonObject, t: float) -> Resume:
     mode = o.get("mode")
     if mode not in ("default", "thesis", "vlbl"):
@@ -153,17 +163,9 @@ def _parse_resume(o: JsonObject, t: float) -> Resume:
     P = _numbers(o, "P", 256)
     if len(P) != len(x) ** 2:
         raise _Bad("field 'P' must hold len(x) squared numbers")
-    outage = None
-    if o.get("beacon_outage") is not None:
-        outage = _numbers(o, "beacon_outage", 8)
-        if len(outage) != 8:
-            raise _Bad("field 'beacon_outage' must hold 8 numbers")
-    long_refused = None
-    if o.get("long_refused") is not None:
-        counts = _numbers(o, "long_refused", 2)
-        if len(counts) != 2:
-            raise _Bad("field 'long_refused' must hold 2 numbers")
-        long_refused = (counts[0], counts[1])
+    outage = _exactly(o, "beacon_outage", 8)
+    counts = _exactly(o, "long_refused", 2)
+    long_refused = None if counts is None else (counts[0], counts[1])
     return Resume(
         t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
         _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"), outage,
