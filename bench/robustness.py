@@ -37,7 +37,7 @@ from typing import Any
 
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
-from navd.analysis.score import REACQUIRED_S, Score, score
+from navd.analysis.score import REACQUIRED_S, AgainstBound, Score, against_bound, score
 from navd.formats.truth import read_truth
 from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
@@ -78,8 +78,14 @@ class Draw:
     cls: str = "base"
 
 
-def _legs(rng: random.Random, pattern: str, heading: float, duration: float,
-          lo: float = 60.0, hi: float = 400.0) -> list[dict[str, Any]]:
+def _legs(
+    rng: random.Random,
+    pattern: str,
+    heading: float,
+    duration: float,
+    lo: float = 60.0,
+    hi: float = 400.0,
+) -> list[dict[str, Any]]:
     legs, t, k = [], 0.0, 0
     while t < duration:
         d = min(duration - t, rng.uniform(lo, hi))
@@ -123,8 +129,9 @@ def draw(seed: int) -> Draw:
             out.append(leg)
             t += leg["duration_s"]
             if t >= next_up and t < duration - 600.0:
-                out.append({**leg, "duration_s": round(rng.uniform(60.0, 180.0), 1),
-                            "depth_m": 0.0})
+                out.append(
+                    {**leg, "duration_s": round(rng.uniform(60.0, 180.0), 1), "depth_m": 0.0}
+                )
                 next_up = t + every
         legs = out
     cur_speed = rng.uniform(0.0, _CURRENT_MAX_MPS)
@@ -249,6 +256,7 @@ class Result:
     thesis: Score | None
     error: str = ""  # a replay that failed (an exception in the navigator)
     bound_m: float = math.nan  # the mission's Cramer-Rao bound (navd/hil/bound.py), RMS
+    against: AgainstBound | None = None  # the default's ellipses beside the bound's
 
     @property
     def diverged(self) -> bool:
@@ -259,12 +267,42 @@ class Result:
         return d.surfacing_m > limit or d.current_rms_mps > DIVERGED_CURRENT_MPS
 
 
+def wrong_priors(dr: Draw) -> Draw:
+    """The same mission with the config's priors on the current, heading bias and speed
+    scale 3 to 10 times smaller than the mission's own errors, as the wrong-prior class
+    draws them, whatever its class (from a generator of its own, so that every other draw
+    stays as it was): the wrong-prior class is long and wide, and this asks whether the
+    other classes' geometry (a short run near the beacon, a net) stays honest too."""
+    if dr.cls == "wrong-prior":
+        return dr
+    sc = dr.scenario
+    rng = random.Random(f"wrong-priors-{dr.seed}")
+    k = [rng.uniform(3.0, 10.0) for _ in range(3)]
+    current = sc["current"]
+    cur = current["speed_mps"] + current.get("tidal_amplitude_mps", 0.0)
+    sensors = sc["sensors"]
+    rpm_err = sc["config"]["navigation"]["speed"]["rpm_per_mps"] / sensors["rpm_per_mps"] - 1.0
+    bias = abs(sensors["compass_bias_deg"])
+    # a floor each, so that a mission with almost none of an error is still told less
+    noise = {
+        "current_init_std_mps": round(max(cur, 0.05) / math.sqrt(2.0) / k[0], 4),
+        "heading_bias_init_std_deg": round(max(bias, 0.5) / k[1], 3),
+        "speed_scale_init_std": round(max(abs(rpm_err), 0.01) / k[2], 4),
+    }
+    navigation = {**sc["config"]["navigation"], "noise": noise}
+    return replace(dr, scenario={**sc, "config": {**sc["config"], "navigation": navigation}})
+
+
 def clean(dr: Draw) -> Draw:
     """The same mission with no outliers to refuse: no multipath and no corrupt beacon
     positions, the ranges an ideal outlier detector would keep (drops stay: a ping that
     never came is no outlier, and the bound counts without it too)."""
-    acoustics = {**dr.scenario["acoustics"], "multipath_prob": 0.0,
-                 "corrupt_position_prob": 0.0, "corrupt_gross_prob": 0.0}
+    acoustics = {
+        **dr.scenario["acoustics"],
+        "multipath_prob": 0.0,
+        "corrupt_position_prob": 0.0,
+        "corrupt_gross_prob": 0.0,
+    }
     return replace(dr, outliers=0.0, scenario={**dr.scenario, "acoustics": acoustics})
 
 
@@ -274,12 +312,15 @@ def run_one(
     noise_seed: int | None = None,
     no_outliers: bool = False,
     matched: tuple[str, ...] | None = None,
+    wrong: bool = False,
 ) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
     with ``no_outliers``, without its outliers (:func:`clean`); with ``matched``, navd
     given those parts of the bound's own model of the mission (navd/hil/bound.py,
-    ``matched_config``)."""
+    ``matched_config``); with ``wrong``, its priors too small (:func:`wrong_priors`)."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
+    if wrong:
+        dr = wrong_priors(dr)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
@@ -295,6 +336,7 @@ def run_one(
         score(out_t, truth) if out_t else None,
         err_d or err_t,
         b.rms_m,
+        against_bound(out_d, truth, b.ellipses) if out_d else None,
     )
     shutil.rmtree(d, ignore_errors=True)
     return result
@@ -335,15 +377,24 @@ def _row(name: str, rs: list[Result]) -> str:
     beats_dr = sum(1 for x in d if x.rms_m <= x.dr_rms_m) / len(d) if d else math.nan
     # against the bound: the root mean square over missions of each side
     bounded = [r for r in ok if not math.isnan(r.bound_m) and r.default is not None]
-    ratio = _rms([r.default.rms_m for r in bounded if r.default]) / _rms(
-        [r.bound_m for r in bounded]
-    ) if bounded else math.nan
+    ratio = (
+        _rms([r.default.rms_m for r in bounded if r.default]) / _rms([r.bound_m for r in bounded])
+        if bounded
+        else math.nan
+    )
+    beside = [r.against for r in ok if r.against is not None]
+    ellipse = (
+        _rms([a.published_std_m for a in beside]) / _rms([a.bound_std_m for a in beside])
+        if beside
+        else math.nan
+    )
     return (
         f"| {name} | {len(rs)} | {sum(1 for r in rs if r.error)} | "
         f"{sum(1 for r in rs if r.diverged)} | {rms_d:.1f} | "
         f"{_mean([r.bound_m for r in bounded]):.1f} | {ratio:.2f} | {rms_t:.1f} | {rms_dr:.1f} | "
         f"{rms_d / rms_t:.2f} | {beats_dr:.2f} | "
         f"{_mean([x.inside95 for x in d]):.2f} | "
+        f"{_mean([a.inside95 for a in beside]):.2f} | {ellipse:.2f} | "
         f"{_mean([x.ok_inside99 for x in d]):.3f} | "
         f"{_mean([x.ok_fraction for x in d]):.2f} | "
         f"{_mean([x.current_rms_mps for x in d]):.3f} |"
@@ -374,11 +425,16 @@ def table(results: list[Result], n: int) -> str:
         "ellipse; *ok in99* = while integrity said ok, the fraction of that time the",
         "truth lies inside the 99 % ellipse; *ok* = fraction of submerged time integrity",
         "said ok; *cur* = RMS current error (m/s); *default <= DR* = fraction of missions",
-        "where the default mode's RMS is no worse than dead reckoning's.",
+        "where the default mode's RMS is no worse than dead reckoning's; *in95 at bound* =",
+        "the same fraction for a 95 % ellipse of the bound's own covariance drawn about",
+        "the estimate (what these estimates would score were they as sure as the bound",
+        "allows: the yardstick for *in95*); *ellipse / bound* = the class's RMS published",
+        "std over the bound's.",
         "",
         "| class | missions | exceptions | divergences | default rms | bound | / bound "
-        "| thesis rms | DR rms | default / thesis | default <= DR | in95 | ok in99 | ok | cur |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| thesis rms | DR rms | default / thesis | default <= DR | in95 | in95 at bound "
+        "| ellipse / bound | ok in99 | ok | cur |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row(name, rs) for name, rs in classes if rs]
     lines += ["", _reacquired(results)]
@@ -463,10 +519,19 @@ def main() -> int:
         "priors the size of its errors): what the default's conservative noise model costs; "
         f"with PARTs, only those of {', '.join(MATCHED_PARTS)}",
     )
+    p.add_argument(
+        "--wrong-priors",
+        action="store_true",
+        help="every mission's config priors on the current, heading bias and speed scale 3 "
+        "to 10 times smaller than its errors, as the wrong-prior class's",
+    )
     args = p.parse_args()
     matched = None if args.matched_noise is None else tuple(args.matched_noise or MATCHED_PARTS)
-    model = "" if matched is None else (
-        " --matched-noise" + "".join(f" {x}" for x in args.matched_noise))
+    model = (
+        ""
+        if matched is None
+        else (" --matched-noise" + "".join(f" {x}" for x in args.matched_noise))
+    )
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
     seeds = list(range(1, args.missions + 1))
@@ -477,22 +542,40 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
         n = len(seeds)
         results = run_all(
-            run_one, seeds, [tmp] * n, [None] * n, [args.no_outliers] * n,
+            run_one,
+            seeds,
+            [tmp] * n,
+            [None] * n,
+            [args.no_outliers] * n,
             [matched] * n,
-            jobs=args.jobs, scheduler=args.scheduler,
+            [args.wrong_priors] * n,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
         )
     took = time.perf_counter() - t0
     if args.missions_out:
         with open(args.missions_out, "w", encoding="utf-8") as fh:
             for r in results:
-                row = {"seed": r.draw.seed, "class": r.draw.cls, "kind": r.draw.kind,
-                       "bound_m": r.bound_m, "error": r.error, "diverged": r.diverged}
+                row = {
+                    "seed": r.draw.seed,
+                    "class": r.draw.cls,
+                    "kind": r.draw.kind,
+                    "bound_m": r.bound_m,
+                    "error": r.error,
+                    "diverged": r.diverged,
+                    "against_bound": asdict(r.against) if r.against else None,
+                }
                 for name, sc in (("default", r.default), ("thesis", r.thesis)):
                     row[name] = asdict(sc) if sc is not None else None
                 fh.write(json.dumps(row) + "\n")
-    cmd = f"`python -m bench.robustness --missions {args.missions}" + (
-        f" --only {args.only}" if args.only else "") + (
-        " --no-outliers" if args.no_outliers else "") + model + "`"
+    cmd = (
+        f"`python -m bench.robustness --missions {args.missions}"
+        + (f" --only {args.only}" if args.only else "")
+        + (" --no-outliers" if args.no_outliers else "")
+        + (" --wrong-priors" if args.wrong_priors else "")
+        + model
+        + "`"
+    )
     where = f"Dask at {args.scheduler}" if args.scheduler else f"{args.jobs} worker processes"
     pace = (
         f"Ran in {took / 60:.1f} min on {where} ({took / len(seeds):.2f} s a mission; "
@@ -501,9 +584,13 @@ def main() -> int:
     report(
         f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
         args.write,
-        "bench-robustness" + "-no-outliers" * args.no_outliers
+        "bench-robustness"
+        + "-no-outliers" * args.no_outliers
+        + "-wrong-priors" * args.wrong_priors
         + model.replace(" --", "-").replace(" ", "-"),
-        "Robustness" + " without outliers" * args.no_outliers
+        "Robustness"
+        + " without outliers" * args.no_outliers
+        + " with every class's priors too small" * args.wrong_priors
         + ("" if matched is None else " with the bound's noise model")
         + (f" ({', '.join(args.matched_noise)} only)" if args.matched_noise else ""),
     )

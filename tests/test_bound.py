@@ -70,3 +70,17 @@ def test_the_matched_config_is_a_valid_config_with_the_bounds_model() -> None:
         assert one.sound_speed == crew_nav.sound_speed
         assert one.noise.heading_std_deg != nz.heading_std_deg
     assert walks["cb1"] < 0.1 * walks["tidal"]
+
+
+def test_the_bound_keeps_its_ellipse_at_every_submerged_step() -> None:
+    """Each class's published ellipse is set beside these (bench-robustness): one per
+    submerged step, in time order, positive definite, and together the bound's RMS."""
+    sc = load_scenario("claytor-2")
+    m = simulate(sc, 1)
+    b = mission_bound(m, config_from_dict(crew_config(sc)))
+    assert len(b.ellipses) == b.steps > 0
+    ts = [e[0] for e in b.ellipses]
+    assert ts == sorted(ts)
+    assert all(vn > 0.0 and ve > 0.0 and c * c < vn * ve for _, vn, ve, c in b.ellipses)
+    mean_var = sum(vn + ve for _, vn, ve, _ in b.ellipses) / b.steps
+    assert math.isclose(math.sqrt(mean_var), b.rms_m)

@@ -64,3 +64,33 @@ def test_the_ellipse_after_a_reacquisition_is_scored_on_its_own() -> None:
     # no re-acquisition: nothing to score
     none = score([o for o in outs if isinstance(o, Estimate)], truth)
     assert none.reacquired_estimates == 0 and math.isnan(none.reacquired_inside95)
+
+
+def test_the_published_ellipse_is_set_beside_the_bounds() -> None:
+    """bench-robustness reads each class's in95 against what an ellipse the size of the
+    Cramer-Rao bound would score about the same estimates, and how much wider the
+    published one is: an error the bound's ellipse holds is counted inside, one past it
+    outside, and the stds are the RMS over the time both cover."""
+    from navd.analysis.score import against_bound
+    from navd.formats.truth import TruthSample
+    from navd.schema import Estimate
+
+    lat0, lon0 = 37.0, -80.0
+    north_m = 1.0 / 111_000.0
+    truth = [TruthSample(float(t), lat0, lon0, 10.0, 0.0, 1.0, 0.0, 0.0, lat0, lon0)
+             for t in range(0, 201)]  # fmt: skip
+    # the bound: 2 m per axis for the first 100 s, 4 m after; published: 10 m per axis
+    ellipses = [(float(t), 4.0 if t < 100 else 16.0, 4.0 if t < 100 else 16.0, 0.0)
+                for t in range(0, 201)]  # fmt: skip
+    outs = [Estimate(t + 0.5, lat0 + 6.0 * north_m, lon0, 0.0, 0.0, 10.0, 10.0, 0.0, 10.0,
+                     "submerged", "ok") for t in range(0, 200)]  # fmt: skip
+    a = against_bound(outs, truth, ellipses)
+    # 6 m north: 9 in the bound's squared distance for its first 100 s (outside the 95 %
+    # ellipse, 5.99), 2.25 after (inside)
+    assert math.isclose(a.inside95, 0.5, abs_tol=0.011)
+    assert math.isclose(a.published_std_m, math.sqrt(200.0))
+    assert math.isclose(a.bound_std_m, math.sqrt(0.5 * (8.0 + 32.0)), rel_tol=0.02)
+    # nothing submerged or no bound to compare with: nothing to say
+    assert math.isnan(against_bound(outs, truth, []).inside95)
+    surfaced = [TruthSample(s.t, s.lat, s.lon, 0.0, 0.0, 1.0, 0.0, 0.0, lat0, lon0) for s in truth]
+    assert math.isnan(against_bound(outs, surfaced, ellipses).published_std_m)

@@ -165,6 +165,49 @@ def position_rms(
     return math.sqrt(sum(sq) / len(sq)) if sq else math.nan
 
 
+@dataclass(frozen=True, slots=True)
+class AgainstBound:
+    """A mission's published ellipses beside the Cramer-Rao bound's (navd/hil/bound.py)."""
+
+    # the RMS of the published std (both axes together) and of the bound's, m, over the
+    # submerged time both cover
+    published_std_m: float
+    bound_std_m: float
+    # the fraction of that time the truth lies in a 95 % ellipse of the bound's covariance
+    # drawn about the estimate: what an estimate this good would score were it as sure as
+    # the bound allows, the yardstick for the published ellipse's in95
+    inside95: float
+
+
+def against_bound(
+    outputs: Iterable[Output],
+    truth: Sequence[TruthSample],
+    ellipses: Sequence[tuple[float, float, float, float]],
+) -> AgainstBound:
+    """The submerged estimates against the bound's position covariance ``(t, var_n,
+    var_e, cov_ne)`` at the bound's step at or after each estimate (its steps are a
+    second apart)."""
+    truth_at = TruthAt(truth)
+    ts = [e[0] for e in ellipses]
+    pub = bnd = 0.0
+    inside: list[bool] = []
+    estimates, _ = split_outputs(outputs)
+    for o in estimates:
+        tr = truth_at(o.t)
+        i = bisect.bisect_left(ts, o.t)
+        if tr is None or tr.depth < _SUBMERGED_DEPTH_M or i == len(ts):
+            continue
+        _, var_n, var_e, cov = ellipses[i]
+        dn, de = _ne_error(o.lat, o.lon, tr.lat, tr.lon)
+        inside.append(_mahalanobis2(dn, de, var_n, var_e, cov) <= CHI2_2DOF_95)
+        pub += o.std_n**2 + o.std_e**2
+        bnd += var_n + var_e
+    if not inside:
+        return AgainstBound(math.nan, math.nan, math.nan)
+    n = len(inside)
+    return AgainstBound(math.sqrt(pub / n), math.sqrt(bnd / n), float(np.mean(inside)))
+
+
 def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
     """A mission's outputs against the simulator's truth samples (truth.jsonl)."""
     truth_at = TruthAt(truth)

@@ -59,6 +59,9 @@ class Bound:
     rms_m: float  # sqrt of the mean, over the submerged steps, of the position variance
     steps: int
     ranges: int  # ranges the ideal detector kept
+    # the position covariance at each submerged step: (t, var_n, var_e, cov_ne), m^2, so
+    # that an estimate's ellipse can be set beside the least any estimator could claim
+    ellipses: tuple[tuple[float, float, float, float], ...] = ()
 
 
 def _ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
@@ -217,6 +220,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
         return Bound(math.nan, 0, 0)
 
     sub_var: list[float] = []
+    ellipses: list[tuple[float, float, float, float]] = []
     used = 0
     mi = 0
     started = False
@@ -256,6 +260,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
                 used += 1
         if started and a.depth >= _SUBMERGED_DEPTH_M:
             sub_var.append(float(P[0, 0] + P[1, 1]))
+            ellipses.append((a.t, float(P[0, 0]), float(P[1, 1]), float(P[0, 1])))
         # propagate over the step with the Jacobians at the truth
         dt = t_next - a.t
         psi, u = math.radians(a.heading_deg), a.speed_mps
@@ -280,4 +285,4 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
         P = 0.5 * (P + P.T)
     if not sub_var:
         return Bound(math.nan, 0, used)
-    return Bound(math.sqrt(float(np.mean(sub_var))), len(sub_var), used)
+    return Bound(math.sqrt(float(np.mean(sub_var))), len(sub_var), used, tuple(ellipses))
