@@ -151,12 +151,7 @@ def draw(seed: int) -> Draw:
         bias = rng.choice([-1, 1]) * rng.uniform(3.0, 8.0)
         rpm_err = rng.choice([-1, 1]) * rng.uniform(0.05, 0.15)
         current["speed_mps"] = round(cur_speed, 3)
-        k = [rng.uniform(3.0, 10.0) for _ in range(3)]
-        navigation["noise"] = {
-            "current_init_std_mps": round(cur_speed / math.sqrt(2.0) / k[0], 4),
-            "heading_bias_init_std_deg": round(abs(bias) / k[1], 3),
-            "speed_scale_init_std": round(abs(rpm_err) / k[2], 4),
-        }
+        navigation["noise"] = _too_small(cur_speed, bias, rpm_err, rng)
     elif cls in ("long-survey", "tidal-turning"):
         amp = rng.uniform(0.2, 0.8)
         period = rng.uniform(40000.0, 46000.0)  # semidiurnal
@@ -267,6 +262,20 @@ class Result:
         return d.surfacing_m > limit or d.current_rms_mps > DIVERGED_CURRENT_MPS
 
 
+def _too_small(
+    current_mps: float, bias_deg: float, scale_err: float, rng: random.Random
+) -> dict[str, float]:
+    """Config priors on the current, heading bias and speed scale 3 to 10 times smaller
+    than these errors (per axis for the current), each with a floor, so that a mission
+    with almost none of an error is still told less."""
+    k = [rng.uniform(3.0, 10.0) for _ in range(3)]
+    return {
+        "current_init_std_mps": round(max(current_mps, 0.05) / math.sqrt(2.0) / k[0], 4),
+        "heading_bias_init_std_deg": round(max(abs(bias_deg), 0.5) / k[1], 3),
+        "speed_scale_init_std": round(max(abs(scale_err), 0.01) / k[2], 4),
+    }
+
+
 def wrong_priors(dr: Draw) -> Draw:
     """The same mission with the config's priors on the current, heading bias and speed
     scale 3 to 10 times smaller than the mission's own errors, as the wrong-prior class
@@ -276,19 +285,13 @@ def wrong_priors(dr: Draw) -> Draw:
     if dr.cls == "wrong-prior":
         return dr
     sc = dr.scenario
-    rng = random.Random(f"wrong-priors-{dr.seed}")
-    k = [rng.uniform(3.0, 10.0) for _ in range(3)]
-    current = sc["current"]
-    cur = current["speed_mps"] + current.get("tidal_amplitude_mps", 0.0)
-    sensors = sc["sensors"]
-    rpm_err = sc["config"]["navigation"]["speed"]["rpm_per_mps"] / sensors["rpm_per_mps"] - 1.0
-    bias = abs(sensors["compass_bias_deg"])
-    # a floor each, so that a mission with almost none of an error is still told less
-    noise = {
-        "current_init_std_mps": round(max(cur, 0.05) / math.sqrt(2.0) / k[0], 4),
-        "heading_bias_init_std_deg": round(max(bias, 0.5) / k[1], 3),
-        "speed_scale_init_std": round(max(abs(rpm_err), 0.01) / k[2], 4),
-    }
+    current, sensors = sc["current"], sc["sensors"]
+    noise = _too_small(
+        current["speed_mps"] + current.get("tidal_amplitude_mps", 0.0),
+        sensors["compass_bias_deg"],
+        sc["config"]["navigation"]["speed"]["rpm_per_mps"] / sensors["rpm_per_mps"] - 1.0,
+        random.Random(f"wrong-priors-{dr.seed}"),
+    )
     navigation = {**sc["config"]["navigation"], "noise": noise}
     return replace(dr, scenario={**sc, "config": {**sc["config"], "navigation": navigation}})
 
