@@ -44,14 +44,14 @@ from navd.settings import Config
 # A current that changes is a random walk with the variance it would build in this long
 # (how far back the ranges that measure the current reach).
 CURRENT_MEMORY_S = 600.0
-_STEP_S = 1.0
-_SUBMERGED_DEPTH_M = 0.3
+STEP_S = 1.0
+SUBMERGED_DEPTH_M = 0.3
 # the least prior std of each calibration state: what no crew knows better
 _FLOOR_CURRENT_MPS = 0.02
 _FLOOR_BIAS_DEG = 0.5
 _FLOOR_SCALE = 0.01
-_FLOOR_SOUND = 0.001  # 1.5 m/s: a sound speed from a CTD cast
-_SOUND = 6  # the sound speed's state; the beacons' follow
+_FLOORSOUND_STATE = 0.001  # 1.5 m/s: a sound speed from a CTD cast
+SOUND_STATE = 6  # the sound speed's state; the beacons' follow
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,7 +64,7 @@ class Bound:
     ellipses: tuple[tuple[float, float, float, float], ...] = ()
 
 
-def _ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
+def local_ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
     """North and east of (lat0, lon0), metres, degrees in (navd's local tangent plane)."""
     e, n, _ = geodesy.enu_offset(
         math.radians(lat0), math.radians(lon0), 0.0, math.radians(lat), math.radians(lon), 0.0
@@ -72,27 +72,27 @@ def _ne(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]
     return n, e
 
 
-def _truth_current_rate(m: Mission, i: int, j: int) -> float:
+def truth_current_rate(m: Mission, i: int, j: int) -> float:
     """Squared rate of change (per axis, mean of the two) of the true current from i to j."""
     a, b = m.truth[i], m.truth[j]
     dt = max(b.t - a.t, 1e-9)
     return 0.5 * (((b.current_n - a.current_n) / dt) ** 2 + ((b.current_e - a.current_e) / dt) ** 2)
 
 
-def _prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarray:
+def calibration_prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarray:
     """Each calibration state's std is the truth's own size (an estimator that knows how
     large the error is, not what it is), with a floor; no position until the first fix."""
     sc, s, tr = m.scenario, m.scenario.sensors, m.truth
     c_true = math.hypot(tr[0].current_n, tr[0].current_e) / math.sqrt(2.0)
     bias_true = math.radians(abs(s.compass_bias_deg) + sum(abs(x) for x in s.compass_deviation_deg))
     scale_true = abs(cfg.navigation.speed.rpm_per_mps / s.rpm_per_mps - 1.0)
-    n_states = _SOUND + 1 + 2 * len(col)
+    n_states = SOUND_STATE + 1 + 2 * len(col)
     P = np.zeros((n_states, n_states))
     P[0, 0] = P[1, 1] = 1e8
     P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
     P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
     P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
-    P[_SOUND, _SOUND] = max(_FLOOR_SOUND, abs(sound_error(m, cfg))) ** 2
+    P[SOUND_STATE, SOUND_STATE] = max(_FLOORSOUND_STATE, abs(sound_error(m, cfg))) ** 2
     fixed = sc.acoustics.transponders
     for name, k in col.items():
         std = next((tp.survey_std_m for tp in fixed if tp.name == name), sc.boat.gps_std_m)
@@ -108,7 +108,7 @@ def sound_error(m: Mission, cfg: Config) -> float:
     return m.channel.c_water / cfg.navigation.sound_speed.model_obj().at(depth) - 1.0
 
 
-def _range_var(m: Mission) -> float:
+def range_variance(m: Mission) -> float:
     """A range's noise variance: the modem's, and for a boat's transducer its swing (the
     stationary variance per axis of an AR(1) process held within swing_m)."""
     sc, b = m.scenario, m.scenario.boat
@@ -117,6 +117,31 @@ def _range_var(m: Mission) -> float:
     step2 = (SWING_STEP * b.swing_m) ** 2 / sc.sensors.rate_hz
     swing_var = min(b.swing_m**2, step2 / (1.0 - SWING_MEMORY**2))
     return sc.acoustics.range_noise_m**2 + swing_var
+
+
+def input_noise(
+    psi: float, u: float, sig_psi: float, sig_u: float, rate: float, dt: float
+) -> np.ndarray:
+    """The position noise (north, east; m^2) over ``dt`` of heading ``psi`` (radians) and
+    speed ``u`` measured with white errors of stds ``sig_psi`` and ``sig_u`` at ``rate``."""
+    if u <= 0.0:
+        return np.zeros((2, 2))
+    c, sn = math.cos(psi), math.sin(psi)
+    var_along = sig_u**2 / rate * dt
+    var_cross = (u * sig_psi) ** 2 / rate * dt
+    cross = (var_along - var_cross) * c * sn
+    return np.array(
+        [
+            [var_along * c * c + var_cross * sn * sn, cross],
+            [cross, var_along * sn * sn + var_cross * c * c],
+        ]
+    )
+
+
+def current_walk(m: Mission, i: int, j: int, dt: float) -> float:
+    """The current's walk variance (per axis, (m/s)^2) over ``dt`` from truth sample i to j:
+    as fast as the truth's current changes there."""
+    return truth_current_rate(m, i, j) * CURRENT_MEMORY_S * dt
 
 
 # the parts of the bound's model matched_config can give navd, and the noise keys of each
@@ -144,12 +169,12 @@ def matched_config(
     default's conservative noise model from what the filter itself loses (bench
     robustness ``--matched-noise``), and each part's share of that cost."""
     sc, s, tr = m.scenario, m.scenario.sensors, m.truth
-    P = _prior(m, cfg, {})  # the calibration's priors (no beacon states)
-    stride = max(1, round(_STEP_S * s.rate_hz))
-    rates = [_truth_current_rate(m, i, i + stride) for i in range(0, len(tr) - stride, stride)]
+    P = calibration_prior(m, cfg, {})  # the calibration's priors (no beacon states)
+    stride = max(1, round(STEP_S * s.rate_hz))
+    rates = [truth_current_rate(m, i, i + stride) for i in range(0, len(tr) - stride, stride)]
     walk = math.sqrt(CURRENT_MEMORY_S * (sum(rates) / len(rates))) if rates else 0.0
     noise = {
-        "range_std_m": math.sqrt(_range_var(m)),
+        "range_std_m": math.sqrt(range_variance(m)),
         "heading_std_deg": max(s.compass_noise_deg, 1e-3),
         "speed_std_mps": max(s.rpm_noise / s.rpm_per_mps, 1e-4),
         "input_corr_s": 1.0 / s.rate_hz,
@@ -165,7 +190,7 @@ def matched_config(
     nav: dict[str, object] = {"noise": {k: v for k, v in noise.items() if k in keys}}
     if "priors" in parts:
         c_crew = cfg.navigation.sound_speed.model_obj().at(0.0)
-        nav["sound_speed"] = {"std_mps": math.sqrt(P[_SOUND, _SOUND]) * c_crew}
+        nav["sound_speed"] = {"std_mps": math.sqrt(P[SOUND_STATE, SOUND_STATE]) * c_crew}
     out: dict[str, object] = {"navigation": nav}
     if "gps" in parts and not sc.acoustics.transponders:
         b = sc.boat
@@ -173,7 +198,7 @@ def matched_config(
     return out
 
 
-def _measurements(m: Mission, col: dict[str, int]) -> list[tuple[float, str, float | str]]:
+def ideal_measurements(m: Mission, col: dict[str, int]) -> list[tuple[float, str, float | str]]:
     """In time order: ("gps", t, std) and ("range", t, beacon) for the clean replies."""
     s = m.scenario.sensors
     meas: list[tuple[float, str, float | str]] = []
@@ -194,7 +219,7 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
     s = sc.sensors
     tr = m.truth
     rate = s.rate_hz
-    stride = max(1, round(_STEP_S * rate))
+    stride = max(1, round(STEP_S * rate))
     lat0, lon0 = tr[0].lat, tr[0].lon
 
     # beacons and the states of their position errors
@@ -203,18 +228,18 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
     where: dict[str, tuple[float, float, float]] = {}
     for tp in fixed:
         where[tp.name] = (tp.north_m, tp.east_m, tp.depth_m)
-    n_states = _SOUND + 1 + 2 * len(names)
-    col = {name: _SOUND + 1 + 2 * k for k, name in enumerate(names)}
+    n_states = SOUND_STATE + 1 + 2 * len(names)
+    col = {name: SOUND_STATE + 1 + 2 * k for k, name in enumerate(names)}
 
-    P = _prior(m, cfg, col)
+    P = calibration_prior(m, cfg, col)
     b = sc.boat
 
     sig_psi = math.radians(s.compass_noise_deg)
     sig_u = s.rpm_noise / s.rpm_per_mps
-    r_var = _range_var(m)
-    phi_boat = math.exp(-_STEP_S / b.gps_corr_s)
+    r_var = range_variance(m)
+    phi_boat = math.exp(-STEP_S / b.gps_corr_s)
 
-    meas = _measurements(m, col)
+    meas = ideal_measurements(m, col)
     first_fix = next((t for t, kind, _ in meas if kind == "gps"), None)
     if first_fix is None:
         return Bound(math.nan, 0, 0)
@@ -240,11 +265,11 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
             elif started:
                 j = min(len(tr) - 1, int(round(t * rate)))
                 v = tr[j]
-                pn, pe = _ne(lat0, lon0, v.lat, v.lon)
+                pn, pe = local_ne(lat0, lon0, v.lat, v.lon)
                 if fixed:
                     bn, be, bdepth = where[str(arg)]
                 else:
-                    bn, be = _ne(lat0, lon0, v.boat_lat, v.boat_lon)
+                    bn, be = local_ne(lat0, lon0, v.boat_lat, v.boat_lon)
                     bdepth = b.transducer_depth_m
                 dn, de, dz = pn - bn, pe - be, v.depth - bdepth
                 slant = math.sqrt(dn * dn + de * de + dz * dz)
@@ -254,11 +279,11 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
                 h[0], h[1] = dn / slant, de / slant
                 k = col[str(arg)]
                 h[k], h[k + 1] = -h[0], -h[1]
-                h[_SOUND] = -slant  # the range navd computes, over its sound speed's error
+                h[SOUND_STATE] = -slant  # the range navd computes, over its sound speed's error
                 Ph = P @ h
                 P = P - np.outer(Ph, Ph) / (float(h @ Ph) + r_var)
                 used += 1
-        if started and a.depth >= _SUBMERGED_DEPTH_M:
+        if started and a.depth >= SUBMERGED_DEPTH_M:
             sub_var.append(float(P[0, 0] + P[1, 1]))
             ellipses.append((a.t, float(P[0, 0]), float(P[1, 1]), float(P[0, 1])))
         # propagate over the step with the Jacobians at the truth
@@ -270,13 +295,8 @@ def mission_bound(m: Mission, cfg: Config) -> Bound:
         F[0, 4], F[1, 4] = -u * sn * dt, u * c * dt
         F[0, 5], F[1, 5] = u * c * dt, u * sn * dt
         Q = np.zeros((n_states, n_states))
-        if u > 0.0:
-            var_along = sig_u**2 / rate * dt
-            var_cross = (u * sig_psi) ** 2 / rate * dt
-            Q[0, 0] = var_along * c * c + var_cross * sn * sn
-            Q[1, 1] = var_along * sn * sn + var_cross * c * c
-            Q[0, 1] = Q[1, 0] = (var_along - var_cross) * c * sn
-        Q[2, 2] = Q[3, 3] = _truth_current_rate(m, i, i + stride) * CURRENT_MEMORY_S * dt
+        Q[0:2, 0:2] = input_noise(psi, u, sig_psi, sig_u, rate, dt)
+        Q[2, 2] = Q[3, 3] = current_walk(m, i, i + stride, dt)
         if not fixed:
             k = col["udb"]
             F[k, k] = F[k + 1, k + 1] = phi_boat
