@@ -50,7 +50,7 @@ SUBMERGED_DEPTH_M = 0.3
 _FLOOR_CURRENT_MPS = 0.02
 _FLOOR_BIAS_DEG = 0.5
 _FLOOR_SCALE = 0.01
-_FLOORSOUND_STATE = 0.001  # 1.5 m/s: a sound speed from a CTD cast
+_FLOOR_SOUND = 0.001  # 1.5 m/s: a sound speed from a CTD cast
 SOUND_STATE = 6  # the sound speed's state; the beacons' follow
 
 
@@ -92,7 +92,7 @@ def calibration_prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarra
     P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
     P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
     P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
-    P[SOUND_STATE, SOUND_STATE] = max(_FLOORSOUND_STATE, abs(sound_error(m, cfg))) ** 2
+    P[SOUND_STATE, SOUND_STATE] = max(_FLOOR_SOUND, abs(sound_error(m, cfg))) ** 2
     fixed = sc.acoustics.transponders
     for name, k in col.items():
         std = next((tp.survey_std_m for tp in fixed if tp.name == name), sc.boat.gps_std_m)
