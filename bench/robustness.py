@@ -46,6 +46,9 @@ from navd.hil.world import simulate
 from navd.settings import config_from_dict
 
 DIVERGED_FINAL_M = 100.0
+# the K-th other draw of a mission's noise (``--noise-draw``) is seeded K strides above
+# the mission's seed: above every mission seed, so no two runs share a noise stream
+NOISE_DRAW_STRIDE = 100_000
 DIVERGED_CURRENT_MPS = 0.5
 
 
@@ -296,6 +299,15 @@ def wrong_priors(dr: Draw) -> Draw:
     return replace(dr, scenario={**sc, "config": {**sc["config"], "navigation": navigation}})
 
 
+def noise_seed(seed: int, k: int) -> int | None:
+    """The seed of mission ``seed``'s ``k``-th other draw of noise (None: as drawn)."""
+    if k <= 0:
+        return None
+    if not 0 < seed < NOISE_DRAW_STRIDE:
+        raise ValueError(f"mission seeds run from 1 to {NOISE_DRAW_STRIDE - 1}")
+    return k * NOISE_DRAW_STRIDE + seed
+
+
 def clean(dr: Draw) -> Draw:
     """The same mission with no outliers to refuse: no multipath and no corrupt beacon
     positions, the ranges an ideal outlier detector would keep (drops stay: a ping that
@@ -508,6 +520,14 @@ def main() -> int:
     )
     p.add_argument("--missions-out", help="write one line per mission (JSON) to this file")
     p.add_argument(
+        "--noise-draw",
+        type=int,
+        default=0,
+        metavar="K",
+        help="each mission's conditions with its K-th other draw of sensor and acoustic "
+        "noise (0: as drawn): how much of a class's figure is one draw's luck",
+    )
+    p.add_argument(
         "--no-outliers",
         action="store_true",
         help="the same missions without multipath or corrupt beacon positions (what the "
@@ -548,7 +568,7 @@ def main() -> int:
             run_one,
             seeds,
             [tmp] * n,
-            [None] * n,
+            [noise_seed(s, args.noise_draw) for s in seeds],
             [args.no_outliers] * n,
             [matched] * n,
             [args.wrong_priors] * n,
@@ -575,6 +595,7 @@ def main() -> int:
         f"`python -m bench.robustness --missions {args.missions}"
         + (f" --only {args.only}" if args.only else "")
         + (" --no-outliers" if args.no_outliers else "")
+        + (f" --noise-draw {args.noise_draw}" if args.noise_draw else "")
         + (" --wrong-priors" if args.wrong_priors else "")
         + model
         + "`"
@@ -589,10 +610,12 @@ def main() -> int:
         args.write,
         "bench-robustness"
         + "-no-outliers" * args.no_outliers
+        + (f"-noise-draw-{args.noise_draw}" if args.noise_draw else "")
         + "-wrong-priors" * args.wrong_priors
         + model.replace(" --", "-").replace(" ", "-"),
         "Robustness"
         + " without outliers" * args.no_outliers
+        + (f", noise draw {args.noise_draw}" if args.noise_draw else "")
         + " with every class's priors too small" * args.wrong_priors
         + ("" if matched is None else " with the bound's noise model")
         + (f" ({', '.join(args.matched_noise)} only)" if args.matched_noise else ""),

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from bench.robustness import draw, wrong_priors
+import pytest
+
+from bench.robustness import NOISE_DRAW_STRIDE, draw, noise_seed, wrong_priors
 
 
 def test_wrong_priors_tell_every_class_three_to_ten_times_less_than_its_errors() -> None:
@@ -38,3 +40,16 @@ def test_wrong_priors_tell_every_class_three_to_ten_times_less_than_its_errors()
         assert rest == {k: v for k, v in sc["config"]["navigation"].items() if k != "noise"}
         assert (wr.seed, wr.cls, wr.kind, wr.outliers) == (dr.seed, dr.cls, dr.kind, dr.outliers)
     assert {"base", "short-near", "boat-outage"} <= seen
+
+
+def test_every_other_draw_of_noise_has_its_own_stream() -> None:
+    """``--noise-draw K`` reruns the same conditions with other noise: draw 0 is the mission
+    as drawn (its own seed), and no other draw of any mission shares a noise seed with a
+    mission or with another draw."""
+    seeds = range(1, 1001)
+    assert all(noise_seed(s, 0) is None for s in seeds)
+    others = [noise_seed(s, k) for k in range(1, 6) for s in seeds]
+    assert len(set(others)) == len(others)
+    assert not set(others) & set(seeds)
+    with pytest.raises(ValueError):
+        noise_seed(NOISE_DRAW_STRIDE, 1)
