@@ -46,10 +46,10 @@ from navd.hil.world import simulate
 from navd.settings import config_from_dict
 
 DIVERGED_FINAL_M = 100.0
+DIVERGED_CURRENT_MPS = 0.5
 # the K-th other draw of a mission's noise (``--noise-draw``) is seeded K strides above
 # the mission's seed: above every mission seed, so no two runs share a noise stream
 NOISE_DRAW_STRIDE = 100_000
-DIVERGED_CURRENT_MPS = 0.5
 
 
 #: the classes a mission is drawn in, and their weights in the draw
