@@ -156,7 +156,8 @@ def test_a_navigator_that_raises_is_caught_counted_and_restarted(tmp_path: Path)
 
 def test_a_vehicle_that_surfaces_with_a_stalled_depth_sensor_takes_gps() -> None:
     nav = Navigator(config_from_dict({}))
-    for k in range(20):
+    nav.feed(Gps(0.0, None, None, None, 0))  # the receiver acquiring as navd starts
+    for k in range(1, 20):
         nav.feed(Gps(k * 0.1, 37.05, -80.66, 0.0, 1))
     nav.feed(Depth(2.5, 4.0))  # dives, then the pressure sensor stalls
     nav.feed(Gps(3.0, 37.05, -80.66, 0.0, 1))

@@ -2,8 +2,17 @@
 
 A fix counts only with the antenna out of the water (depth says so, or depth is too
 old to say otherwise), at a usable HDOP; its std grows with HDOP, an RTK fix has its
-own, and a fix just after surfacing is held to a warm-up floor because the receiver's
-HDOP does not yet show how poor it is.  The fixes' mean altitude is the surface's.
+own, and a fix just after the receiver re-acquires is held to a warm-up floor because
+its HDOP does not yet show how poor it is.  The fixes' mean altitude is the surface's.
+
+A re-acquisition is what the receiver or the vehicle said: a report of no fix, a fix
+while the antenna was under water, a depth that put it there, or a gap in the fixes.
+A receiver already tracking when navd starts (on deck, or waiting at the surface for
+the dive) sends fixes from its first sentence; one that is acquiring sends reports of no
+fix first (an NMEA GGA of quality 0, gpsd's mode 1).  So the first fixes navd sees are
+taken at their stated quality unless the receiver said otherwise: held to the floor,
+the minute at the surface before a dive, where the current is learnt, counted for half
+of what it is (BENCHMARKS.md, "A receiver already tracking at the start").
 """
 
 from __future__ import annotations
@@ -49,6 +58,9 @@ class GpsFixes:
         self.site = site
         self.t_last: float | None = None  # the last fix used
         self.t_streak = -math.inf  # since when fixes have come without a gap
+        # the receiver lost its fix since the last one, so the next streak re-acquires
+        self._lost = False
+        self._reacquiring = False  # the streak under way began with a re-acquisition
         self._alt_sum = 0.0
         self._alt_n = 0
 
@@ -60,7 +72,14 @@ class GpsFixes:
         return self.t_last is not None and t - self.t_last <= FRESH_S
 
     def warmed_up(self, t: float) -> bool:
-        return self.fresh(t) and t - self.t_streak >= self.nav.gps.warmup_s
+        return self.fresh(t) and not self._warming(t)
+
+    def _warming(self, t: float) -> bool:
+        return self._reacquiring and t - self.t_streak < self.nav.gps.warmup_s
+
+    def antenna_under(self) -> None:
+        """Depth puts the antenna under water: the receiver is losing its fix."""
+        self._lost = True
 
     @property
     def surface_altitude(self) -> float:
@@ -87,22 +106,26 @@ class GpsFixes:
     ) -> tuple[float | None, list[str]]:
         """The std to fuse ``rec`` with (None: not used), and the counters it adds to."""
         if rec.fix == 0 or rec.lat is None or rec.lon is None:
+            self._lost = True
             return None, ["gps_no_fix"]
         if rec.hdop is not None and rec.hdop > self.nav.gps.max_hdop:
             return None, ["gps_poor_hdop"]
         said = []
         if not at_surface:
             if rec.t - t_depth <= DEPTH_TRUST_S:
+                self._lost = True
                 return None, ["gps_while_submerged"]
             said.append("gps_with_stale_depth")
         if self.t_last is None or rec.t - self.t_last > NEW_STREAK_S:
             self.t_streak = rec.t
+            self._reacquiring = self._lost or self.t_last is not None
+        self._lost = False
         self.t_last = rec.t
         alt = self.ellipsoidal_height(rec)
         if alt is not None:
             self._alt_sum += alt
             self._alt_n += 1
-        warm = rec.t - self.t_streak < self.nav.gps.warmup_s
+        warm = self._warming(rec.t)
         std = fix_std(
             self.nav.noise.gps_std_m, rec.hdop, rec.quality, rec.sats, self.nav.gps.max_hdop
         )

@@ -203,9 +203,13 @@ class Navigator(Fusion, Resuming):
 
     def _on_depth(self, rec: Depth) -> None:
         self.depth.depth(rec.t, rec.m)
+        if not self._at_surface():
+            self.gps.antenna_under()
 
     def _on_pressure(self, rec: Pressure) -> None:
         self.depth.pressure(rec.t, rec.bar, surfaced=self.gps.fresh(rec.t))
+        if not self._at_surface():
+            self.gps.antenna_under()
 
     def _on_velocity(self, rec: Velocity) -> None:
         # DVL dead reckoning runs beside the range filter, with its predicted error
