@@ -11,8 +11,9 @@ A receiver already tracking when navd starts (on deck, or waiting at the surface
 the dive) sends fixes from its first sentence; one that is acquiring sends reports of no
 fix first (an NMEA GGA of quality 0, gpsd's mode 1).  So the first fixes navd sees are
 taken at their stated quality unless the receiver said otherwise: held to the floor,
-the minute at the surface before a dive, where the current is learnt, counted for half
-of what it is (BENCHMARKS.md, "A receiver already tracking at the start").
+the first 30 s of the minute at the surface before a dive, where the current is learnt,
+counted for a twenty-fifth of their weight (BENCHMARKS.md, "A receiver already tracking
+at the start").
 """
 
 from __future__ import annotations
