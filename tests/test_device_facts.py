@@ -443,7 +443,12 @@ def test_keller_local_echo_is_dropped_not_counted(tmp_path: Path) -> None:
         for _ in range(5):
             tr.write(dec.request(keller.CH_PRESSURE))
             await asyncio.sleep(0.05)
-        await asyncio.sleep(0.2)
+        t_end = asyncio.get_running_loop().time() + 5.0
+        while sum(isinstance(r, Pressure) for r in got) < 5 or not any(
+            isinstance(r, keller.SerialNumber) for r in got
+        ):
+            assert asyncio.get_running_loop().time() < t_end, "answers not in time"
+            await asyncio.sleep(0.02)
         await tr.stop()
         emu.close()
         assert [r.bar for r in got if isinstance(r, Pressure)] == [1.5] * 5

@@ -151,10 +151,11 @@ def test_castle_rpm(tmp_path: Path) -> None:
         tr = SerialTransport(str(emu.path), 9600, dec, got.append)
         tr.start()
         await _until(lambda: tr.health.connected)
-        for _ in range(3):
+        # one request open at a time, as the protocol has it: the next goes out when the
+        # answer is in, so a loaded machine's slow pty cannot turn an answer unsolicited
+        for i in range(3):
             tr.write(dec.request_rpm())
-            await asyncio.sleep(0.05)
-        await _until(lambda: len(got) == 3)
+            await _until(lambda n=i + 1: len(got) == n)
         assert all(isinstance(r, Rpm) and r.rpm == pytest.approx(1150.0, abs=2.0) for r in got)
         await tr.stop()
         emu.close()
