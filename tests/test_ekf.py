@@ -227,16 +227,19 @@ def test_a_restart_goes_on_counting_long_replies() -> None:
 
 
 def test_a_re_acquired_current_carries_the_calibrations_uncertainty() -> None:
-    """A compass reading 10 degrees low drifts the dead reckoning across the track, and
-    the re-acquisition fit, which moves only position and current, reads that drift as
-    a current.  The current it hands over must be as uncertain as the calibration that
-    could also explain it, and correlated with it, so that later ranges can still move
-    the heading bias rather than only the current (navd/filter/ekf_ranges.py)."""
-    noise = NoiseConfig(current_init_std_mps=0.01, heading_bias_init_std_deg=2.0)
+    """A filter that started 60 m from where it thought re-acquires while a compass
+    reading 10 degrees low drifts its dead reckoning across the track: the fit moves
+    only position and current, and reads that drift as a current.  The current it hands
+    over must be as uncertain as the calibration that could also explain it, and
+    correlated with it, so that later ranges can still move the heading bias rather than
+    only the current (navd/filter/ekf_ranges.py)."""
+    noise = NoiseConfig(current_init_std_mps=0.01, heading_bias_init_std_deg=10.0)
     f = _ekf(pos_std=2.0, noise=noise)
     beacons = [(150.0, 150.0), (-150.0, 100.0), (0.0, -200.0)]
     speed, bias = 1.5, R(10.0)
-    true_lat, true_lon = LAT, LON
+    # the fix it started from was 60 m off: the gate refuses the ranges, and the fit
+    # finds the position and the drift the compass made
+    true_lat, true_lon = geodesy.offset_position(LAT, LON, -60.0, 0.0)
     for k in range(1, 25):
         for _ in range(100):  # 10 s at 10 Hz: the compass says 80, the vehicle runs 90
             f.predict(f.t + 0.1, 0.1, R(90.0) - bias, speed, -1.0)

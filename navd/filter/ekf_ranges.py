@@ -541,6 +541,7 @@ class RangeFusion(EkfCore):
         have (a multipath burst).  Only the first gives ranges that agree with one
         another on a correction.
         """
+        J = np.array(self.dv_dcal).reshape(2, 2)
         hyp = reacquire.find(
             self._rays(),
             (float(self.x[2]), float(self.x[3])),
@@ -556,6 +557,7 @@ class RangeFusion(EkfCore):
             seed=self.reacquisitions * 7919 + self.reacquire_refused,
             scale_var=self.biases.m,
             long_refused=self.long_refused,
+            cal_drift_cov=J @ self.P[4:6, 4:6] @ J.T,
         )
         if hyp is None:
             return False
@@ -570,7 +572,6 @@ class RangeFusion(EkfCore):
         # Jacobian, so it carries the calibration's uncertainty and is correlated with
         # it.  Correlations with the beacon offset are dropped.
         P = self.P.copy()
-        J = np.array(self.dv_dcal).reshape(2, 2)
         P_cal = P[4:6, 4:6].copy()
         P[:4, :] = 0.0
         P[:, :4] = 0.0

@@ -49,7 +49,7 @@ _ITERATIONS = 8
 _SUBSETS = 40
 _INLIER_SIGMA = 3.0
 _CURRENT_PRIOR_FRAC = 0.25  # one sigma of a current correction, at most, of the site's maximum
-_CURRENT_FLOOR_MPS = 0.1  # ... and at least
+_CURRENT_FLOOR_MPS = 0.02  # ... and at least (a current learnt to nothing can still move)
 _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, scale)
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
@@ -215,27 +215,39 @@ class _Rays:
 
 
 def _drift_prior(
-    pos_cov: np.ndarray, cur_cov: np.ndarray, since_s: float, max_current_mps: float
+    pos_cov: np.ndarray,
+    cur_cov: np.ndarray,
+    since_s: float,
+    max_current_mps: float,
+    cal_drift_cov: np.ndarray | None = None,
 ) -> np.ndarray:
     """Information on (d, dc) from how an estimate drifts.
 
     Since its last anchor (a GPS fix, a re-acquisition) an estimate drifts by the
-    error of its current times the time elapsed: ``d = since * dc``, give or take its
-    covariance at the anchor and a slower wander (heading bias and speed scale turn
-    with the track).  So a correction far from the estimate needs a current error to
-    match, and a burst of outliers cannot pull the position without pulling the
-    current past what the site allows.  The current error itself is bounded by
-    physics, not by the configured prior: a prior too small is the very failure this
-    recovers from.  It is three times the filter's own current uncertainty (at least
-    ``_CURRENT_FLOOR_MPS``), up to a quarter of the site's maximum: a filter that has
-    learned its current is not talked out of it by a trend in a few ranges from one
-    distant beacon, which a position change across the line of sight explains as well.
+    error of its current times the time elapsed, ``d = since * dc``, and by what its
+    calibration's error makes of the speed through the water, give or take its
+    covariance at the anchor and a slower wander.  So a correction far from the
+    estimate needs a current or calibration error to match, and a burst of outliers
+    cannot pull the position without pulling the current past what is known of it.
+
+    The current error's prior is the filter's own current uncertainty (at least
+    ``_CURRENT_FLOOR_MPS``, at most a quarter of the site's maximum); the calibration's
+    drift, ``cal_drift_cov`` (its velocity covariance, m^2/s^2), is the filter's
+    calibration covariance carried through the window's calibration Jacobian.  A config
+    whose priors are too small has the bank's uncalibrated filter beside it, wide in
+    both (navd/filter/bank.py).  A prior of three times the current's std, and at least
+    0.1 m/s, read a run of replies from one boat whose GPS was off along the line of
+    sight as a current error the surface's fixes had ruled out, and the estimate then
+    drifted across the line of sight for the rest of the dive (BENCHMARKS.md, "A
+    re-acquisition keeps the current it knows").
     """
     cur_std = math.sqrt(max(0.0, float(np.linalg.eigvalsh(cur_cov)[-1])))
-    sc = min(_CURRENT_PRIOR_FRAC * max_current_mps, max(3.0 * cur_std, _CURRENT_FLOOR_MPS))
+    sc = min(_CURRENT_PRIOR_FRAC * max_current_mps, max(cur_std, _CURRENT_FLOOR_MPS))
     sc2 = sc * sc
     slack = _WANDER_MPS * since_s
     cov_d = pos_cov + (slack * slack + 1.0) * np.eye(2)
+    if cal_drift_cov is not None and np.all(np.isfinite(cal_drift_cov)):
+        cov_d = cov_d + since_s * since_s * cal_drift_cov
     W = np.linalg.inv(cov_d)
     A = np.hstack([np.eye(2), -since_s * np.eye(2)])  # d - since * dc
     info: np.ndarray = A.T @ W @ A + np.diag([0.0, 0.0, 1.0 / sc2, 1.0 / sc2])
@@ -255,6 +267,7 @@ def find(
     seed: int,
     scale_var: float = 0.0,
     long_refused: float = 0.0,
+    cal_drift_cov: np.ndarray | None = None,
 ) -> Hypothesis | None:
     """The correction most of the recent ranges agree on, or None when they do not agree.
 
@@ -262,7 +275,9 @@ def find(
     a correction the accepted ranges alone support is no news, and replacing a
     converged covariance by a fit over a few ranges would throw information away.
     ``scale_var`` is the variance of the ranges' scale error as the filter knows it;
-    ``long_refused``, the fraction of recent replies the gate refused as reading long.
+    ``long_refused``, the fraction of recent replies the gate refused as reading long;
+    ``cal_drift_cov``, the covariance of the velocity error the filter's calibration
+    (heading bias, speed scale) makes (see ``_drift_prior``).
 
     When no refused range it explains reads short (all long, or none refused: a fit on
     accepted ranges whose NIS said the covariance claimed too much), a reflector that
@@ -280,7 +295,7 @@ def find(
     r = _Rays(rays, scale_var)
     if not (np.all(np.isfinite(r.B)) and np.all(np.isfinite(r.z)) and np.all(r.sig > 0)):
         return None
-    prior = _drift_prior(pos_cov, cur_cov, since_anchor_s, max_current_mps)
+    prior = _drift_prior(pos_cov, cur_cov, since_anchor_s, max_current_mps, cal_drift_cov)
     rng = np.random.default_rng(seed)
     k = min(n, 4)
     best: tuple[int, float, np.ndarray] | None = None
