@@ -149,6 +149,7 @@ class CalibrationBank:
         from it."""
         self.config = config
         self.uncal = config.with_noise(uncalibrated_noise(config.noise, config.max_current))
+        self.uncal.reacquire_trusts_current = False
         own = self.uncal.noise.current_walk_mps_per_sqrt_s
         fast = tidal_walk(config.max_current)
         self.uncal.consider = CurrentConsider(math.sqrt(max(0.0, fast * fast - own * own)))

@@ -89,6 +89,10 @@ class RangeFusion(EkfCore):
         # recent gate decisions: (accepted, residual); see _reacquire
         self._recent: deque[tuple[bool, float]] = deque(maxlen=2 * reacquire_after)
         self.reacquisitions = 0
+        # whether a re-acquisition keeps the current this filter knows, its covariance, or
+        # allows more (reacquire._drift_prior): the bank's uncalibrated belief does not
+        # trust a current it learnt beside a calibration the ranges are still finding
+        self.reacquire_trusts_current = True
         # how often replies read long past the gate here (a site's reflectors), as the
         # forgotten sums of that indicator and of the ranges (see reacquire.find); the
         # refusals of a streak are left out, since a drifted estimate refuses them too
@@ -558,6 +562,7 @@ class RangeFusion(EkfCore):
             scale_var=self.biases.m,
             long_refused=self.long_refused,
             cal_drift_cov=J @ self.P[4:6, 4:6] @ J.T,
+            trust_current=self.reacquire_trusts_current,
         )
         if hyp is None:
             return False

@@ -50,6 +50,10 @@ _SUBSETS = 40
 _INLIER_SIGMA = 3.0
 _CURRENT_PRIOR_FRAC = 0.25  # one sigma of a current correction, at most, of the site's maximum
 _CURRENT_FLOOR_MPS = 0.02  # ... and at least (a current learnt to nothing can still move)
+# a filter that does not trust the current it knows allows this many times its std, and
+# at least this much
+_DOUBTED_MARGIN = 3.0
+_DOUBTED_FLOOR_MPS = 0.1
 _WANDER_MPS = 0.05  # drift not explained by a constant current error (bias, scale)
 _LR_CHI2_4DOF_99 = 13.28  # 99 % quantile of chi-square, four degrees of freedom
 _MAJORITY = 2.0 / 3.0  # of the window that must agree on a correction
@@ -220,6 +224,7 @@ def _drift_prior(
     since_s: float,
     max_current_mps: float,
     cal_drift_cov: np.ndarray | None = None,
+    trust_current: bool = True,
 ) -> np.ndarray:
     """Information on (d, dc) from how an estimate drifts.
 
@@ -230,19 +235,26 @@ def _drift_prior(
     estimate needs a current or calibration error to match, and a burst of outliers
     cannot pull the position without pulling the current past what is known of it.
 
-    The current error's prior is the filter's own current uncertainty (at least
-    ``_CURRENT_FLOOR_MPS``, at most a quarter of the site's maximum); the calibration's
-    drift, ``cal_drift_cov`` (its velocity covariance, m^2/s^2), is the filter's
-    calibration covariance carried through the window's calibration Jacobian.  A config
-    whose priors are too small has the bank's uncalibrated filter beside it, wide in
-    both (navd/filter/bank.py).  A prior of three times the current's std, and at least
-    0.1 m/s, read a run of replies from one boat whose GPS was off along the line of
-    sight as a current error the surface's fixes had ruled out, and the estimate then
-    drifted across the line of sight for the rest of the dive (BENCHMARKS.md, "A
-    re-acquisition keeps the current it knows").
+    The calibration's drift, ``cal_drift_cov`` (its velocity covariance, m^2/s^2), is
+    the filter's calibration covariance carried through the window's calibration
+    Jacobian.  The current error's prior, at most a quarter of the site's maximum, is
+    what the filter knows of its current: its own std (at least ``_CURRENT_FLOOR_MPS``)
+    when it trusts it (``trust_current``), as the bank's config belief does.  Allowed
+    three times that and at least 0.1 m/s, a run of replies from one boat whose GPS was
+    off along the line of sight read as a current error the surface's fixes had ruled
+    out, and the estimate then drifted across the line of sight for the rest of the dive
+    (BENCHMARKS.md, "A re-acquisition keeps the current it knows").  The bank's
+    uncalibrated belief keeps that margin (``_DOUBTED_MARGIN``, ``_DOUBTED_FLOOR_MPS``):
+    it learns its heading bias and speed scale from the ranges as it goes, and a
+    current learnt beside them can be as wrong as they are; fitted to its own std,
+    its re-acquisitions held a wrong current and the published ellipse lost the truth.
     """
     cur_std = math.sqrt(max(0.0, float(np.linalg.eigvalsh(cur_cov)[-1])))
-    sc = min(_CURRENT_PRIOR_FRAC * max_current_mps, max(cur_std, _CURRENT_FLOOR_MPS))
+    if trust_current:
+        sc = max(cur_std, _CURRENT_FLOOR_MPS)
+    else:
+        sc = max(_DOUBTED_MARGIN * cur_std, _DOUBTED_FLOOR_MPS)
+    sc = min(_CURRENT_PRIOR_FRAC * max_current_mps, sc)
     sc2 = sc * sc
     slack = _WANDER_MPS * since_s
     cov_d = pos_cov + (slack * slack + 1.0) * np.eye(2)
@@ -268,6 +280,7 @@ def find(
     scale_var: float = 0.0,
     long_refused: float = 0.0,
     cal_drift_cov: np.ndarray | None = None,
+    trust_current: bool = True,
 ) -> Hypothesis | None:
     """The correction most of the recent ranges agree on, or None when they do not agree.
 
@@ -277,7 +290,8 @@ def find(
     ``scale_var`` is the variance of the ranges' scale error as the filter knows it;
     ``long_refused``, the fraction of recent replies the gate refused as reading long;
     ``cal_drift_cov``, the covariance of the velocity error the filter's calibration
-    (heading bias, speed scale) makes (see ``_drift_prior``).
+    (heading bias, speed scale) makes; ``trust_current``, whether the filter's own
+    current covariance is what the fit allows (see ``_drift_prior``).
 
     When no refused range it explains reads short (all long, or none refused: a fit on
     accepted ranges whose NIS said the covariance claimed too much), a reflector that
@@ -295,7 +309,9 @@ def find(
     r = _Rays(rays, scale_var)
     if not (np.all(np.isfinite(r.B)) and np.all(np.isfinite(r.z)) and np.all(r.sig > 0)):
         return None
-    prior = _drift_prior(pos_cov, cur_cov, since_anchor_s, max_current_mps, cal_drift_cov)
+    prior = _drift_prior(
+        pos_cov, cur_cov, since_anchor_s, max_current_mps, cal_drift_cov, trust_current
+    )
     rng = np.random.default_rng(seed)
     k = min(n, 4)
     best: tuple[int, float, np.ndarray] | None = None
