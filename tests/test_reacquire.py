@@ -93,9 +93,8 @@ def test_a_current_the_filter_knows_is_kept() -> None:
     off, and re-acquires on one boat whose reported position wanders.  The fit's current
     is as good as the filter's was, not what the boat's wander looks like, and its
     ellipse holds the truth as often as it says.  (With the prior of three times the
-    filter's std and at least 0.1 m/s, the current came out 0.05 m/s off across the line
-    of sight and the position 21 m off, in an ellipse that held the truth 0.99 of the
-    time.)"""
+    filter's std and at least 0.1 m/s, the current came out 0.05 m/s off east and the
+    position 21 m off east, in an ellipse that held the truth 0.99 of the time.)"""
     known = 0.02
     rng = np.random.default_rng(7)
     inside, cur_err = [], []
