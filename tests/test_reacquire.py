@@ -10,6 +10,9 @@ import numpy as np
 import pytest
 
 from navd.filter import reacquire
+from navd.filter.bank import CalibrationBank
+from navd.filter.ekf import RangeEKF
+from navd.settings import NoiseConfig
 
 CHI2_4DOF_95 = 9.49
 BOAT_STD_M = 5.0  # the boat's reported position error, per axis
@@ -111,6 +114,33 @@ def test_a_current_the_filter_knows_is_kept() -> None:
     assert len(inside) >= 160
     assert 0.9 <= float(np.mean(inside)) <= 0.99
     assert np.all(np.sqrt(np.mean(np.square(cur_err), axis=0)) < 1.5 * known)
+
+
+def test_the_uncalibrated_belief_doubts_the_current_it_learnt() -> None:
+    """A filter whose current is 0.1 m/s off while its covariance says 2 cm/s (learnt
+    beside a calibration the ranges were still finding): held to its own std, the fit
+    keeps the wrong current and its ellipse loses the truth; the bank's uncalibrated
+    filter, which does not trust it, allows three times as much and at least 0.1 m/s."""
+
+    def inside(trust: bool) -> float:
+        rng = np.random.default_rng(7)
+        hits = []
+        for k in range(200):
+            rays, truth = _window(rng, BOAT_CORR_S, current_std=0.1)
+            h = reacquire.find(
+                rays, (0.0, 0.0), np.eye(2) * 1e4, np.eye(2) * 0.02**2, 300.0, 2.0, 6, 0,
+                500.0, k, trust_current=trust,
+            )  # fmt: skip
+            if h is not None:
+                e = np.array([h.d_north, h.d_east, h.dc_north, h.dc_east]) - truth
+                hits.append(float(e @ np.linalg.solve(h.cov, e)) <= CHI2_4DOF_95)
+        assert len(hits) >= 160
+        return float(np.mean(hits))
+
+    assert inside(trust=False) >= 0.9
+    assert inside(trust=True) < 0.5
+    bank = CalibrationBank(RangeEKF(NoiseConfig(), 9.0, 4.0, 3))
+    assert bank.config.reacquire_trusts_current and not bank.uncal.reacquire_trusts_current
 
 
 def test_a_boats_wandering_position_error_is_not_averaged_away() -> None:
