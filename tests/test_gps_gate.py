@@ -124,3 +124,46 @@ def test_a_run_of_refused_ranges_is_degraded_then_lost_whatever_the_window_holds
     assert all(e["integrity"] == "lost" for e in est if t8 + 0.2 < e["t"] < t_re)
     # a vehicle at rest is not moved to a circle 2 km off that its drift cannot reach
     assert max(_error_m(e) for e in est) < 50.0
+
+
+def test_a_range_refused_as_short_is_degraded_and_one_refused_as_long_is_not() -> None:
+    """Multipath only lengthens a reply: one refused as 60 m long is an outlier and the
+    estimate stays ``ok``; one refused as 60 m short says the estimate is off, and it is
+    ``degraded`` until a range is accepted again."""
+    nav = Navigator(
+        config_from_dict(
+            {
+                "navigation": {
+                    "speed": {"rpm_per_mps": 1000.0},
+                    "sound_speed": {"model": "fixed", "fixed_mps": 1500.0},
+                }
+            }
+        )
+    )
+    _surface(nav, 0.0, 20.0)
+    beacon = (37.0510, -80.6600, 2.0)  # 110 m north
+    true_m = geodesy.ecef_distance(
+        math.radians(LAT0), math.radians(LON0), -5.0,
+        math.radians(beacon[0]), math.radians(beacon[1]), -beacon[2],
+    )  # fmt: skip
+    extra = {60.0: 60.0, 80.0: -60.0}
+    out: list[dict] = []
+    t = 20.0
+    while t < 110.0:
+        out += nav.feed(Heading(t, 0.0))
+        out += nav.feed(Rpm(t + 0.01, 0.0))
+        out += nav.feed(Depth(t + 0.02, 5.0))
+        if abs(t % 10.0) < 1e-6 and t > 20.0:
+            m = true_m + extra.get(round(t), 0.0)
+            out += nav.feed(Range(t + 0.05, t - 0.5, m, "udb", *beacon))
+        t = round(t + 0.1, 1)
+    decided = {round(o["t"]): o for o in rows(out) if o["type"] == "range"}
+    assert [decided[t]["accepted"] for t in range(30, 110, 10)] == [
+        True, True, True, False, True, False, True, True]  # fmt: skip
+    est = [o for o in rows(out) if o["type"] == "estimate"]
+    assert all(e["integrity"] == "ok" for e in est if 30.2 < e["t"] < 80.0)
+    short = [e for e in est if 80.2 < e["t"] < 90.0]
+    assert short and all(
+        e["integrity"] == "degraded" and "short" in e["integrity_reason"] for e in short
+    )
+    assert all(e["integrity"] == "ok" for e in est if e["t"] > 90.2)

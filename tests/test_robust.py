@@ -93,3 +93,23 @@ def test_integrity_from_consistency_and_covariance() -> None:
     assert ig.assess(5.0) == LOST and "refused" in ig.reason
     ig.clear()
     assert ig.assess(5.0) == OK
+
+
+def test_integrity_after_a_range_refused_as_short() -> None:
+    """Degraded from one range refused as reading short until a range is accepted; a
+    range refused as long (multipath) is no such news, and a fix clears it."""
+    ig = Integrity(window=10, degraded_std_m=25.0, lost_std_m=100.0)
+    for _ in range(10):
+        ig.range(True, 0.5)
+    ig.range(False, 50.0, short=False)
+    assert ig.assess(5.0) == OK
+    ig.range(True, 0.5)
+    ig.range(False, 50.0, short=True)
+    assert ig.assess(5.0) == DEGRADED and "short" in ig.reason
+    ig.range(False, 50.0, short=False)  # none accepted since: still in doubt
+    assert ig.assess(5.0) == DEGRADED and "short" in ig.reason
+    ig.range(True, 0.5)
+    assert ig.assess(5.0) == OK
+    ig.range(False, 50.0, short=True)
+    ig.clear()
+    assert ig.assess(5.0) == OK

@@ -17,6 +17,12 @@ tests that do not need the truth:
 * **A run of refusals.**  Ranges or GPS fixes refused in a row, however few the
   window holds (a GPS fix empties it): ``degraded_refused`` of them is degraded,
   ``lost_refused`` lost.  Each refusal says the estimate and its inputs disagree.
+* **A range refused as short.**  Multipath only lengthens a reply, so a range the gate
+  refuses for reading shorter than the estimate predicts says the estimate is off, not
+  the range (or that the beacon is not where it reports): degraded until a range is
+  accepted.  One is enough: a filter that has taken a reflection for a true reply
+  refuses the true ones after it as short, and while a run of them built up it was
+  ``ok`` and far off (BENCHMARKS.md, "A range refused as short").
 
 ``lost`` means no range agrees with the estimate any more, or its own
 uncertainty is past the site's limit; an autopilot should surface for GPS.
@@ -58,6 +64,7 @@ class Integrity:
         self.degraded_refused = degraded_refused
         self.lost_refused = lost_refused
         self.refused_run = 0  # ranges or fixes refused in a row
+        self.refused_short = False  # since the last accepted range, one refused as short
         # resumed from a checkpoint: degraded until ranges (or a fix) confirm it
         self.unconfirmed: str = ""
         self._confirming = 0
@@ -73,6 +80,7 @@ class Integrity:
         """A position fix (GPS) or a restart: the ranges before it say nothing now."""
         self._ranges.clear()
         self.refused_run = 0
+        self.refused_short = False
         self.unconfirmed, self._confirming = "", 0
         self._summarise()
 
@@ -81,9 +89,12 @@ class Integrity:
         self.clear()
         self.unconfirmed = why
 
-    def range(self, accepted: bool, nis: float) -> None:
+    def range(self, accepted: bool, nis: float, short: bool = False) -> None:
+        """A range the filter accepted or refused, its NIS, and whether it read shorter
+        than predicted."""
         self._ranges.append((accepted, nis))
         self.refused_run = 0 if accepted else self.refused_run + 1
+        self.refused_short = not accepted and (short or self.refused_short)
         if accepted and self.unconfirmed:
             self._confirming += 1
             if self._confirming >= CONFIRM_RESUMED:
@@ -121,6 +132,9 @@ class Integrity:
             return DEGRADED
         if self.refused_run >= self.degraded_refused:
             self.reason = f"{self.refused_run} ranges or fixes refused in a row"
+            return DEGRADED
+        if self.refused_short:
+            self.reason = "a range refused as reading short"
             return DEGRADED
         if self.unconfirmed:
             self.reason = self.unconfirmed

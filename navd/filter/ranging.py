@@ -93,7 +93,9 @@ class Ranging:
             beacon_predicted_from=fix.predicted_from,
         )
         d = flt.range_update(meas)
-        integrity.range(d.accepted, flt.last_nis)
+        # refused by the gate as reading short: not multipath, which only lengthens
+        short = d.reason.startswith("gate") and d.residual_m < 0.0
+        integrity.range(d.accepted, flt.last_nis, short)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if d.accepted:
             est = flt.estimate()
