@@ -9,11 +9,16 @@ The smoother runs over the filter's chain, its state and covariance.  What the f
 published covariance holds beside that chain (the range biases' share, the current its
 belief considers, the spread between the calibration bank's beliefs) the chain does not
 carry, and smoothing cannot take it away: each smoothed estimate keeps it as the filter
-published it at that tick.
+published it at that tick.  Only what it adds is kept: the published covariance less the
+chain's is not a covariance where the bank publishes the mixture about a belief whose
+chain is wider in some direction than the other's, and added to a smoothed covariance
+that has shrunk it would leave an ellipse that is no ellipse at all (a tenth to a
+quarter of the submerged ticks of a run that refuted its current prior, BENCHMARKS.md).
 """
 
 from __future__ import annotations
 
+import math
 import tempfile
 from array import array
 from collections.abc import Iterator
@@ -27,6 +32,24 @@ from navd.formats import jsonlines
 from navd.schema import Estimate, from_dict, to_dict
 
 _FIELDS = len(StateEstimate.__slots__)
+
+
+def added(nn: float, ee: float, ne: float) -> tuple[float, float, float]:
+    """The positive semi-definite part of the symmetric 2x2 ``[[nn, ne], [ne, ee]]``: its
+    negative eigenvalue, if any, taken as nothing; nothing where it is not finite."""
+    if not math.isfinite(nn + ee + ne):
+        return 0.0, 0.0, 0.0
+    mean, half = 0.5 * (nn + ee), 0.5 * (nn - ee)
+    root = math.hypot(half, ne)
+    lo, hi = mean - root, mean + root
+    if lo >= 0.0:
+        return nn, ee, ne
+    if hi <= 0.0:
+        return 0.0, 0.0, 0.0
+    # hi's eigenvector is (half + root, ne), or (ne, root - half): the better conditioned
+    vn, ve = (half + root, ne) if half >= 0.0 else (ne, root - half)
+    k = hi / (vn * vn + ve * ve)
+    return k * vn * vn, k * ve * ve, k * vn * ve
 
 
 class _Segment:
@@ -43,9 +66,9 @@ class _Segment:
         f = self.filter
         own = f.estimate_of(f.x, f.P)
         self.beside.extend(
-            (
-                max(0.0, est.std_n * est.std_n - own.var_n),
-                max(0.0, est.std_e * est.std_e - own.var_e),
+            added(
+                est.std_n * est.std_n - own.var_n,
+                est.std_e * est.std_e - own.var_e,
                 est.cov_ne - own.cov_ne,
             )
         )
