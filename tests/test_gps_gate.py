@@ -10,6 +10,7 @@ however few ranges the integrity window holds.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from serialised import rows
 
@@ -42,6 +43,26 @@ def _surface(
         if abs(t - round(t)) < 1e-9:
             la, lo = (bad or {}).get(round(t), (lat, lon))
             out += nav.feed(Gps(t + 0.02, la, lo, 0.0, 1, 1.0, 1))
+        t = round(t + 0.1, 1)
+    return out
+
+
+BEACON = (37.0510, -80.6600, 2.0)  # 110 m north of the start, 2 m deep
+
+
+def _submerged(
+    nav: Navigator, t0: float, t1: float, range_at: Callable[[float], float]
+) -> list[dict]:
+    """The vehicle at rest 5 m down, a reply from ``BEACON`` every 10 s after ``t0``
+    reading ``range_at(t)``."""
+    out: list[dict] = []
+    t = t0
+    while t < t1:
+        out += nav.feed(Heading(t, 0.0))
+        out += nav.feed(Rpm(t + 0.01, 0.0))
+        out += nav.feed(Depth(t + 0.02, 5.0))
+        if abs(t % 10.0) < 1e-6 and t > t0:
+            out += nav.feed(Range(t + 0.05, t - 0.5, range_at(t), "udb", *BEACON))
         t = round(t + 0.1, 1)
     return out
 
@@ -97,18 +118,8 @@ def test_fixes_that_agree_with_each_other_are_the_position() -> None:
 def test_a_run_of_refused_ranges_is_degraded_then_lost_whatever_the_window_holds() -> None:
     nav = _nav()
     _surface(nav, 0.0, 20.0)
-    out: list[dict] = []
-    t = 20.0
-    beacon = (37.0510, -80.6600, 2.0)  # 110 m north
-    k = 0
-    while t < 200.0:
-        out += nav.feed(Heading(t, 0.0))
-        out += nav.feed(Rpm(t + 0.01, 0.0))
-        out += nav.feed(Depth(t + 0.02, 5.0))
-        if abs(t % 10.0) < 1e-6 and t > 20.0:
-            k += 1  # a range of 2 km from a beacon 110 m away: refused every time
-            out += nav.feed(Range(t + 0.05, t - 0.5, 2000.0, "udb", *beacon))
-        t = round(t + 0.1, 1)
+    # a range of 2 km from a beacon 110 m away: refused every time
+    out = _submerged(nav, 20.0, 200.0, lambda t: 2000.0)
     est = [o for o in rows(out) if o["type"] == "estimate"]
     refused = [o for o in rows(out) if o["type"] == "range" and not o["accepted"]]
     assert len(refused) >= 9
@@ -141,22 +152,12 @@ def test_a_range_refused_as_short_is_degraded_and_one_refused_as_long_is_not() -
         )
     )
     _surface(nav, 0.0, 20.0)
-    beacon = (37.0510, -80.6600, 2.0)  # 110 m north
     true_m = geodesy.ecef_distance(
         math.radians(LAT0), math.radians(LON0), -5.0,
-        math.radians(beacon[0]), math.radians(beacon[1]), -beacon[2],
+        math.radians(BEACON[0]), math.radians(BEACON[1]), -BEACON[2],
     )  # fmt: skip
-    extra = {60.0: 60.0, 80.0: -60.0}
-    out: list[dict] = []
-    t = 20.0
-    while t < 110.0:
-        out += nav.feed(Heading(t, 0.0))
-        out += nav.feed(Rpm(t + 0.01, 0.0))
-        out += nav.feed(Depth(t + 0.02, 5.0))
-        if abs(t % 10.0) < 1e-6 and t > 20.0:
-            m = true_m + extra.get(round(t), 0.0)
-            out += nav.feed(Range(t + 0.05, t - 0.5, m, "udb", *beacon))
-        t = round(t + 0.1, 1)
+    extra = {60: 60.0, 80: -60.0}
+    out = _submerged(nav, 20.0, 110.0, lambda t: true_m + extra.get(round(t), 0.0))
     decided = {round(o["t"]): o for o in rows(out) if o["type"] == "range"}
     assert [decided[t]["accepted"] for t in range(30, 110, 10)] == [
         True, True, True, False, True, False, True, True]  # fmt: skip
