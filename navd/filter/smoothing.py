@@ -26,7 +26,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from navd.filter import estimate
-from navd.filter.common import NavFilter, Smoothable, StateEstimate
+from navd.filter.common import NavFilter, Smoothable, StateEstimate, principal_axes
 from navd.filter.smoother import rts_backward
 from navd.formats import jsonlines
 from navd.schema import Estimate, from_dict, to_dict
@@ -39,17 +39,13 @@ def added(nn: float, ee: float, ne: float) -> tuple[float, float, float]:
     negative eigenvalue, if any, taken as nothing; nothing where it is not finite."""
     if not math.isfinite(nn + ee + ne):
         return 0.0, 0.0, 0.0
-    mean, half = 0.5 * (nn + ee), 0.5 * (nn - ee)
-    root = math.hypot(half, ne)
-    lo, hi = mean - root, mean + root
+    hi, lo, theta = principal_axes(nn, ee, ne)
     if lo >= 0.0:
         return nn, ee, ne
     if hi <= 0.0:
         return 0.0, 0.0, 0.0
-    # hi's eigenvector is (half + root, ne), or (ne, root - half): the better conditioned
-    vn, ve = (half + root, ne) if half >= 0.0 else (ne, root - half)
-    k = hi / (vn * vn + ve * ve)
-    return k * vn * vn, k * ve * ve, k * vn * ve
+    c, s = math.cos(theta), math.sin(theta)  # the axis of the positive eigenvalue
+    return hi * c * c, hi * s * s, hi * c * s
 
 
 class _Segment:
