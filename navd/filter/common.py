@@ -45,6 +45,9 @@ class GateDecision:
     residual_m: float
     gate_m: float
     reason: str  # "ok", "gate", or why the range never reached the test
+    # refused on its residual: by the gate, or by the re-acquisition it set off (the
+    # residual's sign then says which way the estimate is off)
+    on_residual: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -237,10 +240,10 @@ class NavFilter(Protocol):
     ranges_as_reported: bool
     #: ranges are fused only while there is no fresh GPS fix (seed 000 Algorithm 2)
     ranges_only_without_gps: bool
+
     @property
     def last_nis(self) -> float:
         """Normalised innovation squared of the last range (NaN: the mode has no gate)."""
-
 
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None: ...
 

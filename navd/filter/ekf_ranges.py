@@ -370,11 +370,11 @@ class RangeFusion(EkfCore):
             if len(rejected) < self.reacquire_after:
                 # a refusal among accepted ranges: an outlier, not an estimate gone wrong
                 self._count_long(residual > 0.0)
-                return GateDecision(False, residual, gate_m, "gate")
+                return GateDecision(False, residual, gate_m, "gate", on_residual=True)
             if self._reacquire(m):
-                return GateDecision(False, residual, gate_m, "gate_reacquire")
+                return GateDecision(False, residual, gate_m, "gate_reacquire", on_residual=True)
             self.reacquire_refused += 1
-            return GateDecision(False, residual, gate_m, "gate")
+            return GateDecision(False, residual, gate_m, "gate", on_residual=True)
         self._window.append((m, False))
         self._count_long(False)
         self._nis.append(self.last_nis)
@@ -384,7 +384,7 @@ class RangeFusion(EkfCore):
             # re-acquisition as after a run of rejections.
             self._nis.clear()
             if self._reacquire(m, min_rejected=0):
-                return GateDecision(False, residual, gate_m, "gate_reacquire")
+                return GateDecision(False, residual, gate_m, "gate_reacquire", on_residual=True)
             self.reacquire_refused += 1
         if residual > HUBER_K * math.sqrt(S):
             # A long reply inside the gate may still be multipath: the gate is wide when

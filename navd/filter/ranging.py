@@ -94,7 +94,7 @@ class Ranging:
         )
         d = flt.range_update(meas)
         # refused by the gate as reading short: not multipath, which only lengthens
-        short = d.reason.startswith("gate") and d.residual_m < 0.0
+        short = d.on_residual and d.residual_m < 0.0
         integrity.range(d.accepted, flt.last_nis, short)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if d.accepted:

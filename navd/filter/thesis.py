@@ -195,7 +195,7 @@ class ThesisEKF:
         r_e = radius_of_error(self.P, self.x[0], r_var)
         residual = m.range_m - expected
         if not accept_or_reject(expected, m.range_m, r_e):
-            return GateDecision(False, residual, r_e, "gate")
+            return GateDecision(False, residual, r_e, "gate", on_residual=True)
         S = float(H @ self.P @ H) + r_var
         K = self.P @ H / S
         self.x = self.x + K * residual
