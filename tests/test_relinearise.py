@@ -115,6 +115,34 @@ def test_relinearising_the_window_brings_the_filter_closer_and_keeps_it_honest()
 _num = st.floats(allow_nan=True, allow_infinity=True, width=64)
 
 
+def test_a_state_moved_outside_the_window_leaves_the_filters_covariance_a_covariance() -> None:
+    """A caller that sets the state directly, without forgetting the window (as
+    ``move_to`` does), leaves transitions that no longer describe the chain: the window
+    then solves to a covariance with negative variances, which once made the next gate
+    take a square root of one and raise.  The filter keeps its own instead."""
+    f = RangeEKF(NoiseConfig(), 9.0, 4.0, 3, max_current_mps=2.0)
+    f.initialise(LAT, LON, 3.0, 0.0)
+    b_lat, b_lon = geodesy.offset_position(LAT, LON, 500.0, 200.0)
+    rng = np.random.default_rng(1)
+    true_n = true_e = 0.0
+    heading = R(60.0)
+    for k in range(1, 121):
+        if k % 30 == 0:
+            heading += R(90.0)
+        if k == 31:
+            off = np.zeros(len(f.x))
+            off[:2] = 100.0, 100.0
+            f.x = f.state_apply(f.x, off)
+        for _ in range(100):
+            f.predict(f.t + 0.1, 0.1, heading, 1.5, -2.0)
+            true_n += 0.15 * math.cos(heading)
+            true_e += 0.15 * math.sin(heading)
+        v_lat, v_lon = geodesy.offset_position(LAT, LON, true_n, true_e)
+        r = geodesy.ecef_distance(v_lat, v_lon, -2.0, b_lat, b_lon, -2.0) + rng.normal()
+        f.range_update(RangeMeas(f.t, f.t, r, "boat", b_lat, b_lon, -2.0, -2.0, 1.0))
+        assert np.linalg.eigvalsh(f.P).min() > 0.0
+
+
 def _windows(seed: int) -> list[list[relinearise.Step]]:
     """Every window a filter solved on a run past a beacon whose position error it tracks."""
     rng = np.random.default_rng(seed)

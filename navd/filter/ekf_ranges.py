@@ -64,6 +64,14 @@ class _Outage:
     std_m: float = 0.0  # the prediction's largest std since
 
 
+def _positive_definite(P: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
 class RangeFusion(EkfCore):
     def __init__(
         self,
@@ -123,6 +131,14 @@ class RangeFusion(EkfCore):
         self._nis.clear()
         self._window.clear()
         self._steps.clear()
+
+    def move_to(self, x: np.ndarray) -> None:
+        """Take another filter's mean, keeping this one's covariance: its ranges have
+        given this mean up (navd/filter/bank.py), not what it knows of how well each
+        state is known.  The ranges before it are forgotten, as after a re-acquisition."""
+        self.x = x.copy()
+        self._forget_ranges()
+        self.history.correct(self.x.copy(), self.P.copy())
 
     def predicted_range(self, m: RangeMeas) -> tuple[float, np.ndarray]:
         """Mean of the out and back legs of the round trip, and its Jacobian.
@@ -494,6 +510,11 @@ class RangeFusion(EkfCore):
         )
         solved = relinearise.solve(steps, _RELIN_PASSES, _RELIN_TOL_M)
         if solved is None:
+            return
+        if not _positive_definite(solved[1]):
+            # a window whose transitions no longer describe the filter's chain (a state
+            # moved outside it) solves to a covariance that is none: keep the filter's
+            steps.clear()
             return
         k, self.P = solved
         self.x = self.state_apply(x_prior, k, m.vehicle_hd)
