@@ -45,23 +45,25 @@ smoother, its state for the checkpoint), with the covariance of the mixture abou
 mean, and says so (``calibration_refuted``).  A right config's own estimate stays well
 inside its priors, since its posterior is narrower than them.
 
-Either belief can also be lost on its own.  The uncalibrated filter's wide priors let
-one range that reads a few metres short just after the dive (the boat's GPS wandering)
-move its speed scale by a standard deviation; its error then grows as fast as its
-spread, every true reply reads about two of them long of it, and its long-side gate,
-narrow against multipath, refuses them all, until a re-acquisition fits a window that
-its wrong calibration bends (BENCHMARKS.md, "A lost belief moves to the other's mean").
-An interacting multiple model starts each filter at every cycle from a mix of all of
-them (Bar-Shalom, Li and Kirubarajan 2001, 11.6), which here would drag each belief by
-the multipath the other accepts.  The bank mixes only once the ranges have given one up:
-when, for as many ranges in a row as a filter's re-acquisition waits for, a belief
-refuses on its residual a range the other accepts and is left weighing less than the
-chance of a switch, it moves to the other's mean.  It keeps its own covariance, what it
-has learnt of how well each state is known (started instead from the other's with its
-own calibration priors, as at a restart, the uncalibrated filter lost what it had learnt
-of them: BENCHMARKS.md).  The weights stay as the ranges left them, as an interacting
-multiple model's mode probabilities do through its mixing, so the doubt published still
-says which belief the ranges gave up.
+The uncalibrated belief can also be lost on its own.  Its wide priors let one range that
+reads a few metres short just after the dive (the boat's GPS wandering) move its speed
+scale by a standard deviation; its error then grows as fast as its spread, every true
+reply reads about two of them long of it, and its long-side gate, narrow against
+multipath, refuses them all, while its re-acquisitions, which fit position and current
+along a track its wrong calibration bends, find nothing for minutes, then a wrong place
+(BENCHMARKS.md, "A lost belief moves to the other's mean").  An interacting multiple
+model starts each filter at every cycle from a mix of all of them (Bar-Shalom, Li and
+Kirubarajan 2001, 11.6), which here would drag each belief by the multipath the other
+accepts.  So the bank mixes only once the ranges have given the uncalibrated belief up:
+when, for as many ranges in a row as its re-acquisition looks back over (twice
+``reacquire_after``), it refuses on its residual a range the config belief accepts,
+re-acquires nothing, and is left weighing less than the chance of a switch, it moves to
+the config belief's mean, its covariance grown by the move (the outer product of the
+difference, the spread an interacting multiple model's mixing adds), so that it still
+holds the place it had.  The weights stay as the ranges left them.  The config belief is
+never moved to the other's: its covariance is the config's, narrow, and at the other's
+place it would be sure of a place it never found, on a circle a wrong filter predicts as
+well as a right one (measured in BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -174,9 +176,8 @@ class CalibrationBank:
         self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
         self.refuted = False  # the config's priors, by the config filter's own estimate
         self._t0 = 0.0  # when the priors were set (the walks grow them from then)
-        # ranges in a row that said the config's, or the uncalibrated, belief is lost
-        self._lost = {"config": 0, "uncal": 0}
-        self.reseeded = 0  # beliefs started again from the other
+        self._lost_run = 0  # ranges in a row that said the uncalibrated belief is lost
+        self.moved = 0  # times it was moved to the config belief's mean
 
     @property
     def followed(self) -> RangeEKF:
@@ -219,7 +220,7 @@ class CalibrationBank:
         self.w_uncal = _PRIOR
         self.refuted = False
         self._t0 = t
-        self._lost = {"config": 0, "uncal": 0}
+        self._lost_run = 0
 
     def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
         return self.followed.checkpoint()
@@ -242,37 +243,32 @@ class CalibrationBank:
         )
         self.uncal.restore(x, P * np.outer(k, k), grow_m2, held)
         self.w_uncal = _PRIOR
-        self._lost = {"config": 0, "uncal": 0}
+        self._lost_run = 0
         # a checkpoint of a refuted config's run holds the uncalibrated filter's
         # calibration, and the next update refutes the priors again
         self.refuted = False
 
-    def _reseed(self, lost: RangeEKF) -> None:
-        """Move the lost belief to the other's mean, with its own covariance; the weights
-        stay what the ranges made them."""
-        src = self.uncal if lost is self.config else self.config
-        lost.move_to(src.x)
-        self._lost = {"config": 0, "uncal": 0}
-        self.reseeded += 1
+    def _move_uncal(self) -> None:
+        """Move the uncalibrated belief to the config belief's mean; its covariance grows
+        by the move, so that it still holds the place it had (the mixture's spread, as an
+        interacting multiple model mixes); the weights stay what the ranges made them."""
+        d = self.uncal.state_diff(self.uncal.x, self.config.x)
+        self.uncal.move_to(self.config.x, np.outer(d, d))
+        self._lost_run = 0
+        self.moved += 1
 
     def _watch_lost(self, dc: GateDecision, du: GateDecision) -> None:
-        """After a range's evidence: a belief that refused it on its residual, where the
-        other accepted it, and now weighs less than the chance of a switch, is a range
-        nearer lost; as many in a row as a filter's re-acquisition waits for, and it is
-        lost (the module's docstring)."""
-        for name, mine, other, w in (
-            ("config", dc, du, 1.0 - self.w_uncal),
-            ("uncal", du, dc, self.w_uncal),
-        ):
-            if mine.accepted:
-                self._lost[name] = 0
-            elif mine.on_residual and other.accepted and w < _SWITCH:
-                self._lost[name] += 1
-        run = self.config.reacquire_after
-        if self._lost["uncal"] >= run:
-            self._reseed(self.uncal)
-        elif self._lost["config"] >= run:
-            self._reseed(self.config)
+        """After a range's evidence: if the uncalibrated belief refused it on its residual
+        without re-acquiring, the config belief accepted it, and the uncalibrated one now
+        weighs less than the chance of a switch, it is a range nearer lost; a
+        re-acquisition's window of them in a row, and it is lost (the module's
+        docstring)."""
+        if du.accepted or du.reason == "gate_reacquire":
+            self._lost_run = 0
+        elif du.on_residual and dc.accepted and self.w_uncal < _SWITCH:
+            self._lost_run += 1
+        if self._lost_run >= 2 * self.config.reacquire_after:
+            self._move_uncal()
 
     def prior_distance2(self) -> float:
         """The config filter's calibration against the config's priors, grown by the

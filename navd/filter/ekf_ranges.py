@@ -132,11 +132,12 @@ class RangeFusion(EkfCore):
         self._window.clear()
         self._steps.clear()
 
-    def move_to(self, x: np.ndarray) -> None:
-        """Take another filter's mean, keeping this one's covariance: its ranges have
-        given this mean up (navd/filter/bank.py), not what it knows of how well each
-        state is known.  The ranges before it are forgotten, as after a re-acquisition."""
+    def move_to(self, x: np.ndarray, grow: np.ndarray) -> None:
+        """Take another filter's mean, this one's covariance grown by ``grow`` (the bank
+        gives the move's own spread: navd/filter/bank.py).  The ranges before it are
+        forgotten, as after a re-acquisition."""
         self.x = x.copy()
+        self.P = self.P + grow
         self._forget_ranges()
         self.history.correct(self.x.copy(), self.P.copy())
 
