@@ -253,8 +253,10 @@ class CalibrationBank:
         by the move, so that it still holds the place it had (the mixture's spread, as an
         interacting multiple model mixes); the weights stay what the ranges made them."""
         d = self.uncal.state_diff(self.uncal.x, self.config.x)
-        self.uncal.move_to(self.config.x, np.outer(d, d))
         self._lost_run = 0
+        if not np.isfinite(d).all():
+            return  # a broken state is no mean to move to, nor a spread to grow by
+        self.uncal.move_to(self.config.x, np.outer(d, d))
         self.moved += 1
 
     def _watch_lost(self, dc: GateDecision, du: GateDecision) -> None:
