@@ -177,7 +177,6 @@ class CalibrationBank:
         self.refuted = False  # the config's priors, by the config filter's own estimate
         self._t0 = 0.0  # when the priors were set (the walks grow them from then)
         self._lost_run = 0  # ranges in a row that said the uncalibrated belief is lost
-        self.moved = 0  # times it was moved to the config belief's mean
 
     @property
     def followed(self) -> RangeEKF:
@@ -257,15 +256,14 @@ class CalibrationBank:
         if not np.isfinite(d).all():
             return  # a broken state is no mean to move to, nor a spread to grow by
         self.uncal.move_to(self.config.x, np.outer(d, d))
-        self.moved += 1
 
-    def _watch_lost(self, dc: GateDecision, du: GateDecision) -> None:
+    def _watch_lost(self, dc: GateDecision, du: GateDecision, reacquired: bool) -> None:
         """After a range's evidence: if the uncalibrated belief refused it on its residual
         without re-acquiring, the config belief accepted it, and the uncalibrated one now
         weighs less than the chance of a switch, it is a range nearer lost; a
         re-acquisition's window of them in a row, and it is lost (the module's
         docstring)."""
-        if du.accepted or du.reason == "gate_reacquire":
+        if du.accepted or reacquired:
             self._lost_run = 0
         elif du.on_residual and dc.accepted and self.w_uncal < _SWITCH:
             self._lost_run += 1
@@ -302,6 +300,7 @@ class CalibrationBank:
 
     def range_update(self, m: RangeMeas) -> GateDecision:
         decision = self.config.range_update(m)
+        reacquisitions = self.uncal.reacquisitions
         du = self.uncal.range_update(m)
         lc = range_likelihood(decision.residual_m, self.config.last_s)
         lu = range_likelihood(du.residual_m, self.uncal.last_s)
@@ -310,7 +309,7 @@ class CalibrationBank:
         num = w * lu
         den = num + (1.0 - w) * lc
         self.w_uncal = num / den if den > 0.0 and math.isfinite(den) else w
-        self._watch_lost(decision, du)
+        self._watch_lost(decision, du, self.uncal.reacquisitions > reacquisitions)
         self._test_priors()
         return du if self.refuted else decision
 
