@@ -93,7 +93,7 @@ class Ranging:
             beacon_predicted_from=fix.predicted_from,
         )
         d = flt.range_update(meas)
-        # refused by the gate as reading short: not multipath, which only lengthens
+        # refused on its residual as reading short: not multipath, which only lengthens
         short = d.on_residual and d.residual_m < 0.0
         integrity.range(d.accepted, flt.last_nis, short)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
