@@ -92,6 +92,9 @@ class RangeDecision:
     residual_m: float | None = None  # None: the range never reached the gate
     gate_m: float | None = None
     reason: str = ""  # ok, gate, or why it never reached the gate
+    # the residual squared over the variance the filter expected of it (None: the range
+    # never reached a gate that knows that variance: thesis and vlbl modes)
+    nis: float | None = _optional()
     type: str = "range"
 
 

@@ -298,3 +298,21 @@ def test_the_truth_is_matched_between_its_steps(claytor: Path, tmp_path: Path) -
         r = run("report", str(out), "--truth", str(truth), "--out", str(tmp_path / "rep"))
         assert r.returncode == 0, r.stderr
         assert said in (tmp_path / "rep" / "summary.txt").read_text()
+
+
+def test_a_gated_range_says_its_nis_and_a_range_that_never_reached_the_gate_does_not(
+    claytor: Path, tmp_path: Path
+) -> None:
+    """``nis`` is the residual squared over the variance the gate used: with the default
+    gate (9 short, 4 long, on that ratio) it is the residual over the gate, squared, times
+    the side's chi-square."""
+    out = tmp_path / "out.jsonl"
+    assert replay_claytor(claytor, out).returncode == 0
+    rng = [o for o in read_jsonl(out) if o["type"] == "range"]
+    gated = [o for o in rng if o["reason"] in ("ok", "gate", "gate_reacquire")]
+    assert len(gated) > 20 and any(not o["accepted"] for o in gated)
+    for o in gated:
+        chi2 = 4.0 if o["residual_m"] > 0.0 else 9.0
+        assert o["nis"] == pytest.approx(chi2 * (o["residual_m"] / o["gate_m"]) ** 2, rel=1e-6)
+        assert (o["nis"] <= chi2) == o["accepted"] or o["reason"] == "gate_reacquire"
+    assert all("nis" not in o for o in rng if o["residual_m"] is None)

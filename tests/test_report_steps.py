@@ -23,8 +23,10 @@ def _mission() -> ReportInput:
         RangeDecision(90.0, 89.0, "udb", reason="gate", range_m=900.0),
         RangeDecision(100.0, 99.0, "udb", reason="no_beacon_position"),
     ]
-    truth = [TruthSample(t, 37.0, -80.6, 2.0, 0.0, 1.0, 0.0, 0.0, 37.0, -80.6)
-             for t in (0.0, 60.0, 120.0)]
+    truth = [
+        TruthSample(t, 37.0, -80.6, 2.0, 0.0, 1.0, 0.0, 0.0, 37.0, -80.6)
+        for t in (0.0, 60.0, 120.0)
+    ]
     return ReportInput(est, dec, [], truth, "truth.jsonl")
 
 
@@ -76,3 +78,32 @@ def test_navd_watch_marks_an_estimate_whose_calibration_priors_were_refuted() ->
     assert format_estimate(_est(60.0, calibration_refuted=True)).endswith(
         "ok  calibration priors refuted"
     )
+
+
+def _ranges_with_nis(values: list[float | None]) -> ReportInput:
+    m = _mission()
+    dec = [
+        RangeDecision(60.0 + i, 59.0 + i, "t1", accepted=True, reason="ok", nis=v)
+        for i, v in enumerate(values)
+    ]
+    return ReportInput(m.estimates, dec, [], [], "")
+
+
+def test_the_summary_says_which_way_the_ranges_find_the_noise_model() -> None:
+    """The accepted ranges' mean NIS is the one test of the ellipse a mission without truth
+    allows: well below what a right model gives, the ellipse is wider than the error;
+    well above, narrower."""
+
+    def line(values: list[float | None]) -> str | None:
+        return next((x for x in summary(_ranges_with_nis(values)) if "NIS" in x), None)
+
+    wide = line([0.1] * 40)
+    assert wide is not None
+    assert wide.startswith("ranges against the noise model: mean NIS 0.10 over 40")
+    assert "wider than the error" in wide
+    fits = line([0.5, 1.3] * 20)
+    assert fits is not None and fits.endswith("(about 0.9 when it fits)")
+    narrow = line([3.0] * 40)
+    assert narrow is not None and "narrower than the error" in narrow
+    # too few to judge by, and ranges without a gate's variance are not counted
+    assert line([0.1] * 29 + [None] * 20) is None

@@ -222,6 +222,7 @@ def summary(r: ReportInput) -> list[str]:
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
     lines += _calibration(r)
+    lines += _consistency(r)
     lines += _observability(r)
     lines += _against_truth(r)
     last = est[-1]
@@ -252,6 +253,43 @@ def _calibration(r: ReportInput) -> list[str]:
         "(current_init_std_mps, heading_bias_init_std_deg, speed_scale_init_std; measure or "
         f"widen them){learned}"
     ]
+
+
+# accepted ranges the mean NIS needs before the report judges the noise model by it
+_NIS_MIN_RANGES = 30
+# A right noise model's accepted ranges average about 0.88: the gate cuts the tails at 3
+# sigma short and 2 sigma long (the truncated normal's second moment).  Past these the
+# report says which way the model is off: a factor of two either way is far outside what
+# a few hundred ranges' mean strays by, yet near enough to act on.
+_NIS_WIDE, _NIS_NARROW = 0.45, 2.0
+
+
+def _consistency(r: ReportInput) -> list[str]:
+    """What the accepted ranges' residuals say of the noise model, the one test of the
+    published ellipse a mission without truth allows (Bar-Shalom, Li and Kirubarajan 2001,
+    5.4: the normalised innovation squared)."""
+    nis = [d.nis for d in r.decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
+    if len(nis) < _NIS_MIN_RANGES:
+        return []
+    mean = sum(nis) / len(nis)
+    line = (
+        f"ranges against the noise model: mean NIS {mean:.2f} over {len(nis)} accepted "
+        "(about 0.9 when it fits)"
+    )
+    if mean < _NIS_WIDE:
+        line += (
+            ": the ranges agree with the estimate better than the model expects, so the "
+            "published ellipse is likely wider than the error; if other missions here say "
+            "the same, measure navigation.noise (range_std_m, current_walk_mps_per_sqrt_s) "
+            "for this site"
+        )
+    elif mean > _NIS_NARROW:
+        line += (
+            ": the ranges disagree with the estimate more than the model allows, so the "
+            "published ellipse is likely narrower than the error; check navigation.noise "
+            "(range_std_m, the priors) and the sound speed"
+        )
+    return [line]
 
 
 def _observability(r: ReportInput) -> list[str]:

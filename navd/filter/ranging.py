@@ -114,6 +114,7 @@ class Ranging:
             residual_m=d.residual_m if math.isfinite(d.residual_m) else None,
             gate_m=d.gate_m if math.isfinite(d.gate_m) else None,  # None: no gate (vlbl)
             reason=d.reason,
+            nis=flt.last_nis if math.isfinite(flt.last_nis) else None,
         )
 
     def _refused(self, decision: RangeDecision) -> RangeDecision:
