@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-attainable bench-soak bench-calibration bench-advisory bench-files bench-link-size check-armhf check-arm64 clean
+	bench-robustness bench-noise-check bench-attainable bench-soak bench-calibration bench-advisory bench-files bench-link-size check-armhf check-arm64 clean
 
 $(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c navd/filter/_window.c \
 		navd/filter/_buffer.h
@@ -59,6 +59,10 @@ bench-daemon: $(STAMP)
 # 120 missions with drawn sensor errors and conditions (about 7 minutes on 2 cores; --jobs N)
 bench-robustness: $(STAMP)
 	$(BIN)/python -m bench.robustness --missions 120 --write BENCHMARKS.md
+
+# does `navd report`'s test of the noise model (the accepted ranges' mean NIS) tell the truth?
+bench-noise-check: $(STAMP)
+	$(BIN)/python -m bench.noise_check --missions 120 --write BENCHMARKS.md
 
 # the same 120 missions' truths with the bound's own noise, twice each: what an estimator
 # that knows the bound's model reaches, and navd's filter on the same (about 10 minutes)

@@ -8,7 +8,7 @@ are drawn on a local metric grid (east/north metres from the first estimate).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -264,26 +264,43 @@ _NIS_MIN_RANGES = 30
 _NIS_WIDE, _NIS_NARROW = 0.45, 2.0
 
 
-def _consistency(r: ReportInput) -> list[str]:
-    """What the accepted ranges' residuals say of the noise model, the one test of the
+@dataclass(frozen=True, slots=True)
+class NoiseVerdict:
+    """What the accepted ranges' residuals say of the noise model: the one test of the
     published ellipse a mission without truth allows (Bar-Shalom, Li and Kirubarajan 2001,
     5.4: the normalised innovation squared)."""
-    nis = [d.nis for d in r.decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
+
+    mean_nis: float
+    ranges: int
+    verdict: str  # fits | wider (the ellipse likely wider than the error) | narrower
+
+
+def noise_verdict(decisions: Iterable[RangeDecision]) -> NoiseVerdict | None:
+    """The verdict of the accepted ranges' mean NIS (None: too few to judge by)."""
+    nis = [d.nis for d in decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
     if len(nis) < _NIS_MIN_RANGES:
-        return []
+        return None
     mean = sum(nis) / len(nis)
+    verdict = "wider" if mean < _NIS_WIDE else "narrower" if mean > _NIS_NARROW else "fits"
+    return NoiseVerdict(mean, len(nis), verdict)
+
+
+def _consistency(r: ReportInput) -> list[str]:
+    v = noise_verdict(r.decisions)
+    if v is None:
+        return []
     line = (
-        f"ranges against the noise model: mean NIS {mean:.2f} over {len(nis)} accepted "
+        f"ranges against the noise model: mean NIS {v.mean_nis:.2f} over {v.ranges} accepted "
         "(about 0.9 when it fits)"
     )
-    if mean < _NIS_WIDE:
+    if v.verdict == "wider":
         line += (
             ": the ranges agree with the estimate better than the model expects, so the "
             "published ellipse is likely wider than the error; if other missions here say "
             "the same, measure navigation.noise (range_std_m, current_walk_mps_per_sqrt_s) "
             "for this site"
         )
-    elif mean > _NIS_NARROW:
+    elif v.verdict == "narrower":
         line += (
             ": the ranges disagree with the estimate more than the model allows, so the "
             "published ellipse is likely narrower than the error; check navigation.noise "

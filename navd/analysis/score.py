@@ -54,6 +54,10 @@ class Score:
     # truth lies in the 95 % ellipse, and the estimates that time holds
     reacquired_inside95: float = math.nan
     reacquired_estimates: int = 0
+    # the error's squared Mahalanobis distance in its published ellipse over the submerged
+    # time, per axis (the normalised estimation error squared: 1 for an ellipse the size
+    # of the error, below it wider)
+    nees: float = math.nan
 
 
 def replies_to_reacquire(ranges: list[RangeDecision]) -> list[int]:
@@ -212,6 +216,7 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
     """A mission's outputs against the simulator's truth samples (truth.jsonl)."""
     truth_at = TruthAt(truth)
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
+    d2s: list[float] = []
     ok_inside: list[bool] = []
     last_sub: tuple[float, float] | None = None
     estimates, ranges = split_outputs(outputs)
@@ -226,6 +231,7 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
         errs.append(e)
         d2 = _mahalanobis2(dn, de, o.std_n**2, o.std_e**2, o.cov_ne)
         inside.append(d2 <= CHI2_2DOF_95)
+        d2s.append(d2)
         if any(0.0 <= o.t - t < REACQUIRED_S for t in reacquired_at):
             after.append(d2 <= CHI2_2DOF_95)
         if o.integrity == "ok":
@@ -261,4 +267,5 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
         ok_fraction=len(ok_inside) / len(errs),
         reacquired_inside95=float(np.mean(after)) if after else math.nan,
         reacquired_estimates=len(after),
+        nees=float(np.mean(d2s)) / 2.0,
     )

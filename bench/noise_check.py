@@ -1,0 +1,135 @@
+"""Does `navd report`'s test of the noise model tell the truth?
+
+A real mission has no truth to hold its ellipse against; the report judges the noise model
+by the accepted ranges' mean NIS instead (navd/analysis/report.py, ``noise_verdict``).
+Here each of the Monte Carlo's missions (bench/robustness.py's draws, as drawn and with
+every prior 3 to 10 times too small) is replayed, its verdict taken as the report would,
+and set beside what the truth says: the error's mean squared Mahalanobis distance in the
+published ellipse, per axis (NEES, 1 for an ellipse the size of the error, below 1 wider).
+
+    python -m bench.noise_check --missions 120 [--write BENCHMARKS.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.common import replay_mission, report
+from bench.robustness import draw, wrong_priors
+from navd.analysis.jobs import default_jobs, run_all
+from navd.analysis.report import noise_verdict
+from navd.analysis.score import score
+from navd.formats.truth import read_truth
+from navd.hil.scenario import scenario_from_dict
+from navd.hil.sim_cli import write_mission
+from navd.hil.world import simulate
+from navd.schema import RangeDecision
+
+
+@dataclass(frozen=True, slots=True)
+class Checked:
+    seed: int
+    cls: str
+    kind: str
+    wrong: bool
+    verdict: str  # fits | wider | narrower | none (too few accepted ranges) | error
+    mean_nis: float
+    nees: float
+    inside95: float
+
+
+def check_one(seed: int, workdir: str, wrong: bool) -> Checked:
+    dr = wrong_priors(draw(seed)) if wrong else draw(seed)
+    d = Path(workdir) / f"nc-{seed}-{int(wrong)}"
+    write_mission(simulate(scenario_from_dict(dr.scenario), seed), d, None)
+    truth = read_truth(d / "truth.jsonl")
+    out, err = replay_mission(d, "default")
+    nan = float("nan")
+    if err:
+        return Checked(seed, dr.cls, dr.kind, wrong, "error", nan, nan, nan)
+    v = noise_verdict(o for o in out if isinstance(o, RangeDecision))
+    s = score(out, truth)
+    if v is None:
+        return Checked(seed, dr.cls, dr.kind, wrong, "none", nan, s.nees, s.inside95)
+    return Checked(seed, dr.cls, dr.kind, wrong, v.verdict, v.mean_nis, s.nees, s.inside95)
+
+
+def _row(name: str, rs: list[Checked]) -> str:
+    n = len(rs)
+    wider = [r for r in rs if r.verdict == "wider"]
+    narrower = [r for r in rs if r.verdict == "narrower"]
+    fits = [r for r in rs if r.verdict == "fits"]
+
+    def median(xs: list[float]) -> str:
+        xs = [x for x in xs if x == x]
+        return f"{statistics.median(xs):.2f}" if xs else "-"
+
+    return (
+        f"| {name} | {n} | {len(wider)} | {sum(r.nees < 1.0 for r in wider)} | "
+        f"{len(narrower)} | {sum(r.nees > 1.0 for r in narrower)} | {len(fits)} | "
+        f"{sum(r.verdict in ('none', 'error') for r in rs)} | "
+        f"{median([r.mean_nis for r in rs])} | {median([r.nees for r in rs])} | "
+        f"{sum(r.nees > 1.0 for r in rs)} |"
+    )
+
+
+def table(results: list[Checked], missions: int) -> str:
+    lines = [
+        f"`python -m bench.noise_check --missions {missions}`",
+        "",
+        f"The {missions} missions of `make bench-robustness`, as drawn and with every prior 3 "
+        "to 10 times too small (`--wrong-priors`), each replayed and judged as `navd report` "
+        "judges it, from its accepted ranges' mean NIS alone: *wider* (below 0.45: the "
+        "ellipse is likely wider than the error), *narrower* (above 2), *fits*, or none "
+        "(fewer than 30 accepted ranges). Beside it the truth: *NEES*, the error's mean "
+        "squared Mahalanobis distance in the published ellipse per axis over the submerged "
+        "time (1 for an ellipse the size of the error). *true* counts the verdicts the "
+        "truth bears out (NEES below 1 for *wider*, above 1 for *narrower*); *NEES > 1* "
+        "counts the missions whose ellipse was narrower than their error, whatever the "
+        "verdict.",
+        "",
+        "| missions | n | wider | true | narrower | true | fits | none | median mean NIS "
+        "| median NEES | NEES > 1 |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for wrong in (False, True):
+        rs = [r for r in results if r.wrong == wrong]
+        label = "with every prior too small" if wrong else "as drawn"
+        lines.append(_row(f"**{label}**", rs))
+        for kind, name in (("beacon", "single beacon"), ("lbl-2", "2-transponder"),
+                           ("lbl-3", "3-transponder")):  # fmt: skip
+            sub = [r for r in rs if r.kind == kind]
+            if sub:
+                lines.append(_row(f"{label}: {name}", sub))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="bench.noise_check", description=__doc__.split("\n\n")[0])
+    p.add_argument("--missions", type=int, default=120)
+    p.add_argument("--jobs", type=int, default=default_jobs())
+    p.add_argument("--write", help="put the table in this BENCHMARKS.md")
+    args = p.parse_args(argv)
+    seeds = list(range(1, args.missions + 1))
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="navd-nc-") as tmp:
+        n = len(seeds)
+        results = run_all(
+            check_one, seeds * 2, [tmp] * 2 * n, [False] * n + [True] * n, jobs=args.jobs
+        )
+    took = time.perf_counter() - t0
+    body = table(results, args.missions) + (
+        f"\n\nRan in {took / 60:.1f} min on {args.jobs} worker processes."
+    )
+    report(body, args.write, "bench-noise-check", "The ranges' test of the noise model")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
