@@ -107,6 +107,21 @@ def table(results: list[Checked], missions: int) -> str:
             sub = [r for r in rs if r.kind == kind]
             if sub:
                 lines.append(_row(f"{label}: {name}", sub))
+    for wrong in (False, True):
+        rs = [r for r in results if r.wrong == wrong]
+        label = "with every prior too small" if wrong else "as drawn"
+        lines.append("")
+        lines.append(f"{label.capitalize()}, where the truth says otherwise:")
+        lines.append("")
+        for verdict, bad in (
+            ("wider", [r for r in rs if r.verdict == "wider" and not r.nees < 1.0]),
+            ("narrower", [r for r in rs if r.verdict == "narrower" and not r.nees > 1.0]),
+            ("fits, with NEES > 1", [r for r in rs if r.verdict == "fits" and r.nees > 1.0]),
+        ):
+            seeds = ", ".join(
+                f"{r.seed} ({r.cls}, NIS {r.mean_nis:.2f}, NEES {r.nees:.2f})" for r in bad
+            )
+            lines.append(f"- *{verdict}*: {seeds or 'none'}")
     return "\n".join(lines)
 
 
