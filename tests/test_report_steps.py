@@ -80,30 +80,42 @@ def test_navd_watch_marks_an_estimate_whose_calibration_priors_were_refuted() ->
     )
 
 
-def _ranges_with_nis(values: list[float | None]) -> ReportInput:
+def _ranges_with_nis(values: list[float | None], moving: bool = False) -> ReportInput:
     m = _mission()
     dec = [
-        RangeDecision(60.0 + i, 59.0 + i, "t1", accepted=True, reason="ok", nis=v)
+        RangeDecision(
+            60.0 + i, 59.0 + i, "t1", beacon_lat=37.01 + (1e-5 * i if moving else 0.0),
+            beacon_lon=-80.6, accepted=True, reason="ok", nis=v,
+        )  # fmt: skip
         for i, v in enumerate(values)
     ]
     return ReportInput(m.estimates, dec, [], [], "")
 
 
-def test_the_summary_says_which_way_the_ranges_find_the_noise_model() -> None:
+def _nis_line(values: list[float | None], moving: bool = False) -> str | None:
+    return next((x for x in summary(_ranges_with_nis(values, moving)) if "NIS" in x), None)
+
+
+def test_the_summary_says_which_way_a_fixed_transponders_ranges_find_the_noise_model() -> None:
     """The accepted ranges' mean NIS is the one test of the ellipse a mission without truth
     allows: well below what a right model gives, the ellipse is wider than the error;
     well above, narrower."""
-
-    def line(values: list[float | None]) -> str | None:
-        return next((x for x in summary(_ranges_with_nis(values)) if "NIS" in x), None)
-
-    wide = line([0.1] * 40)
+    wide = _nis_line([0.1] * 40)
     assert wide is not None
     assert wide.startswith("ranges against the noise model: mean NIS 0.10 over 40")
     assert "wider than the error" in wide
-    fits = line([0.5, 1.3] * 20)
+    fits = _nis_line([0.5, 1.3] * 20)
     assert fits is not None and fits.endswith("(about 0.9 when it fits)")
-    narrow = line([3.0] * 40)
+    narrow = _nis_line([3.0] * 40)
     assert narrow is not None and "narrower than the error" in narrow
     # too few to judge by, and ranges without a gate's variance are not counted
-    assert line([0.1] * 29 + [None] * 20) is None
+    assert _nis_line([0.1] * 29 + [None] * 20) is None
+
+
+def test_a_moving_beacons_ranges_give_no_verdict_on_the_ellipse() -> None:
+    """A boat's GPS wander outweighs the filter's share of its ranges' variance: Monte
+    Carlo missions whose ellipse was too narrow averaged NIS well below 1 there
+    (BENCHMARKS.md, "The ranges' test of the noise model")."""
+    line = _nis_line([0.1] * 40, moving=True)
+    assert line is not None and "no verdict on the ellipse" in line
+    assert "wider" not in line and "narrower" not in line

@@ -270,29 +270,57 @@ class NoiseVerdict:
     published ellipse a mission without truth allows (Bar-Shalom, Li and Kirubarajan 2001,
     5.4: the normalised innovation squared)."""
 
-    mean_nis: float
+    mean_nis: float  # over every accepted range
     ranges: int
-    verdict: str  # fits | wider (the ellipse likely wider than the error) | narrower
+    # over the fixed beacons' ranges, which the verdict is taken from
+    fixed_mean_nis: float
+    fixed_ranges: int
+    # wider (the ellipse likely wider than the error) | narrower | fits | unjudged (too few
+    # ranges from fixed beacons)
+    verdict: str
+
+
+def _fixed(decisions: list[RangeDecision]) -> set[str]:
+    """The beacons whose every reply put them at one place: surveyed transponders.  A
+    moving beacon's ranges carry its reported position's error, mostly a boat's GPS
+    wander, which outweighs the filter's own share of their variance and hides it."""
+    where: dict[str, set[tuple[float, float] | None]] = {}
+    for d in decisions:
+        at = None
+        if d.beacon_lat is not None and d.beacon_lon is not None:
+            at = (round(d.beacon_lat, 7), round(d.beacon_lon, 7))
+        where.setdefault(d.beacon, set()).add(at)
+    return {b for b, places in where.items() if len(places) == 1 and None not in places}
 
 
 def noise_verdict(decisions: Iterable[RangeDecision]) -> NoiseVerdict | None:
-    """The verdict of the accepted ranges' mean NIS (None: too few to judge by)."""
-    nis = [d.nis for d in decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
-    if len(nis) < _NIS_MIN_RANGES:
+    """The verdict of the accepted ranges' mean NIS (None: too few ranges at all)."""
+    usable = [d for d in decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
+    if len(usable) < _NIS_MIN_RANGES:
         return None
-    mean = sum(nis) / len(nis)
-    verdict = "wider" if mean < _NIS_WIDE else "narrower" if mean > _NIS_NARROW else "fits"
-    return NoiseVerdict(mean, len(nis), verdict)
+    mean = sum(d.nis or 0.0 for d in usable) / len(usable)
+    fixed = _fixed(usable)
+    nis = [d.nis or 0.0 for d in usable if d.beacon in fixed]
+    if len(nis) < _NIS_MIN_RANGES:
+        return NoiseVerdict(mean, len(usable), math.nan, len(nis), "unjudged")
+    fmean = sum(nis) / len(nis)
+    verdict = "wider" if fmean < _NIS_WIDE else "narrower" if fmean > _NIS_NARROW else "fits"
+    return NoiseVerdict(mean, len(usable), fmean, len(nis), verdict)
 
 
 def _consistency(r: ReportInput) -> list[str]:
     v = noise_verdict(r.decisions)
     if v is None:
         return []
-    line = (
-        f"ranges against the noise model: mean NIS {v.mean_nis:.2f} over {v.ranges} accepted "
-        "(about 0.9 when it fits)"
-    )
+    line = f"ranges against the noise model: mean NIS {v.mean_nis:.2f} over {v.ranges} accepted"
+    if v.verdict == "unjudged":
+        return [
+            line + "; no verdict on the ellipse: a moving beacon's ranges carry its reported "
+            "position's error, which hides the filter's share (fixed transponders' ranges show it)"
+        ]
+    if v.fixed_ranges < v.ranges:
+        line += f", {v.fixed_mean_nis:.2f} over the {v.fixed_ranges} from fixed transponders"
+    line += " (about 0.9 when it fits)"
     if v.verdict == "wider":
         line += (
             ": the ranges agree with the estimate better than the model expects, so the "
