@@ -258,9 +258,10 @@ def _calibration(r: ReportInput) -> list[str]:
 # accepted ranges the mean NIS needs before the report judges the noise model by it
 _NIS_MIN_RANGES = 30
 # A right noise model's accepted ranges average about 0.88: the gate cuts the tails at 3
-# sigma short and 2 sigma long (the truncated normal's second moment).  Past these the
-# report says which way the model is off: a factor of two either way is far outside what
-# a few hundred ranges' mean strays by, yet near enough to act on.
+# sigma short and 2 sigma long (the truncated normal's second moment; its std is 1.14).
+# Past these the report says which way the model is off: half of 0.88 is two standard
+# errors of the mean of the 30 ranges it needs and several of a mission's hundreds, yet
+# near enough to act on.
 _NIS_WIDE, _NIS_NARROW = 0.45, 2.0
 
 
