@@ -15,20 +15,14 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
-from bench.common import replay_mission, report
-from bench.robustness import draw, wrong_priors
+from bench.common import report
+from bench.robustness import draw, fly, wrong_priors
 from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.report import noise_verdict
 from navd.analysis.score import score
-from navd.formats.truth import read_truth
-from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import write_mission
-from navd.hil.world import simulate
 from navd.schema import RangeDecision
 
 
@@ -43,23 +37,19 @@ class Checked:
     verdict: str
     mean_nis: float
     nees: float
-    inside95: float
 
 
-def check_one(seed: int, workdir: str, wrong: bool) -> Checked:
+def check_one(seed: int, wrong: bool) -> Checked:
     dr = wrong_priors(draw(seed)) if wrong else draw(seed)
-    d = Path(workdir) / f"nc-{seed}-{int(wrong)}"
-    write_mission(simulate(scenario_from_dict(dr.scenario), seed), d, None)
-    truth = read_truth(d / "truth.jsonl")
-    out, err = replay_mission(d, "default")
+    out, err, truth = fly(dr)
     nan = float("nan")
     if err:
-        return Checked(seed, dr.cls, dr.kind, wrong, "error", nan, nan, nan)
+        return Checked(seed, dr.cls, dr.kind, wrong, "error", nan, nan)
     v = noise_verdict(o for o in out if isinstance(o, RangeDecision))
-    s = score(out, truth)
+    nees = score(out, truth).nees
     if v is None:
-        return Checked(seed, dr.cls, dr.kind, wrong, "none", nan, s.nees, s.inside95)
-    return Checked(seed, dr.cls, dr.kind, wrong, v.verdict, v.mean_nis, s.nees, s.inside95)
+        return Checked(seed, dr.cls, dr.kind, wrong, "none", nan, nees)
+    return Checked(seed, dr.cls, dr.kind, wrong, v.verdict, v.mean_nis, nees)
 
 
 def _row(name: str, rs: list[Checked]) -> str:
@@ -136,11 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     seeds = list(range(1, args.missions + 1))
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="navd-nc-") as tmp:
-        n = len(seeds)
-        results = run_all(
-            check_one, seeds * 2, [tmp] * 2 * n, [False] * n + [True] * n, jobs=args.jobs
-        )
+    n = len(seeds)
+    results = run_all(check_one, seeds * 2, [False] * n + [True] * n, jobs=args.jobs)
     took = time.perf_counter() - t0
     body = table(results, args.missions) + (
         f"\n\nRan in {took / 60:.1f} min on {args.jobs} worker processes."

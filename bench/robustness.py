@@ -38,11 +38,12 @@ from typing import Any
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.score import REACQUIRED_S, AgainstBound, Score, against_bound, score
-from navd.formats.truth import read_truth
+from navd.formats.truth import TruthSample, read_truth
 from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import mission_config, write_mission
 from navd.hil.world import simulate
+from navd.schema import Output
 from navd.settings import config_from_dict
 
 DIVERGED_FINAL_M = 100.0
@@ -319,6 +320,18 @@ def clean(dr: Draw) -> Draw:
         "corrupt_gross_prob": 0.0,
     }
     return replace(dr, outliers=0.0, scenario={**dr.scenario, "acoustics": acoustics})
+
+
+def fly(dr: Draw) -> tuple[list[Output], str, list[TruthSample]]:
+    """Mission ``dr`` simulated with its own seed's noise and replayed by the default mode,
+    in a directory of its own that is gone after: its outputs, the error the replay ended
+    with ("" when none), and its truth."""
+    with tempfile.TemporaryDirectory(prefix="navd-fly-") as td:
+        d = Path(td) / "m"
+        write_mission(simulate(scenario_from_dict(dr.scenario), dr.seed), d, None)
+        truth = read_truth(d / "truth.jsonl")
+        out, err = replay_mission(d, "default")
+    return out, err, truth
 
 
 def run_one(

@@ -3,17 +3,9 @@ mean (navd/filter/bank.py): the Monte Carlo mission that showed it."""
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
-
-from bench.common import replay_mission
-from bench.robustness import draw
+from bench.robustness import draw, fly
 from navd.analysis.score import score
 from navd.filter import bank
-from navd.formats.truth import read_truth
-from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import write_mission
-from navd.hil.world import simulate
 
 
 def test_a_followed_belief_that_refuses_every_true_reply_is_moved() -> None:
@@ -31,16 +23,11 @@ def test_a_followed_belief_that_refuses_every_true_reply_is_moved() -> None:
         moved.append(self.config.t)
         original(self)
 
-    dr = draw(92)
-    with tempfile.TemporaryDirectory() as td:
-        d = Path(td) / "m"
-        write_mission(simulate(scenario_from_dict(dr.scenario), 92), d, None)
-        truth = read_truth(d / "truth.jsonl")
-        bank.CalibrationBank._move_uncal = spy  # type: ignore[method-assign]
-        try:
-            out, err = replay_mission(d, "default")
-        finally:
-            bank.CalibrationBank._move_uncal = original  # type: ignore[method-assign]
+    bank.CalibrationBank._move_uncal = spy  # type: ignore[method-assign]
+    try:
+        out, err, truth = fly(draw(92))
+    finally:
+        bank.CalibrationBank._move_uncal = original  # type: ignore[method-assign]
     assert err == ""
     assert moved and moved[0] < 300.0  # within four minutes of the dive
     s = score(out, truth)

@@ -3,17 +3,9 @@ when it says the published ellipse is wider than the error, it is."""
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
-
-from bench.common import replay_mission
-from bench.robustness import draw
+from bench.robustness import draw, fly
 from navd.analysis.report import ReportInput, summary
 from navd.analysis.score import score
-from navd.formats.truth import read_truth
-from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import write_mission
-from navd.hil.world import simulate
 from navd.schema import Estimate, RangeDecision
 
 
@@ -23,11 +15,7 @@ def test_a_net_flown_with_ranges_quieter_than_configured_is_told_its_ellipse_is_
     report, which has no truth, says so from the ranges alone."""
     dr = draw(1)
     assert dr.kind == "lbl-3"
-    with tempfile.TemporaryDirectory() as td:
-        d = Path(td) / "m"
-        write_mission(simulate(scenario_from_dict(dr.scenario), 1), d, None)
-        truth = read_truth(d / "truth.jsonl")
-        out, err = replay_mission(d, "default")
+    out, err, truth = fly(dr)
     assert err == ""
     est = [o for o in out if isinstance(o, Estimate)]
     dec = [o for o in out if isinstance(o, RangeDecision)]
