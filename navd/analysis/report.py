@@ -296,12 +296,14 @@ def _fixed(decisions: list[RangeDecision]) -> set[str]:
 
 def noise_verdict(decisions: Iterable[RangeDecision]) -> NoiseVerdict | None:
     """The verdict of the accepted ranges' mean NIS (None: too few ranges at all)."""
-    usable = [d for d in decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)]
+    usable = [
+        (d, d.nis) for d in decisions if d.accepted and d.nis is not None and math.isfinite(d.nis)
+    ]
     if len(usable) < _NIS_MIN_RANGES:
         return None
-    mean = sum(d.nis or 0.0 for d in usable) / len(usable)
-    fixed = _fixed(usable)
-    nis = [d.nis or 0.0 for d in usable if d.beacon in fixed]
+    mean = sum(v for _, v in usable) / len(usable)
+    fixed = _fixed([d for d, _ in usable])
+    nis = [v for d, v in usable if d.beacon in fixed]
     if len(nis) < _NIS_MIN_RANGES:
         return NoiseVerdict(mean, len(usable), math.nan, len(nis), "unjudged")
     fmean = sum(nis) / len(nis)
