@@ -2,8 +2,9 @@
 
 A real mission has no truth to hold its ellipse against; the report judges the noise model
 by the accepted ranges' mean NIS instead (navd/analysis/report.py, ``noise_verdict``).
-Here each of the Monte Carlo's missions (bench/robustness.py's draws, as drawn and with
-every prior 3 to 10 times too small) is replayed, its verdict taken as the report would,
+Here each of the Monte Carlo's missions (bench/robustness.py's draws: as drawn, with
+every prior 3 to 10 times too small, and with ranges 1.5 to 3 times noisier than the
+config says) is replayed, its verdict taken as the report would,
 and set beside what the truth says: the error's mean squared Mahalanobis distance in the
 published ellipse, per axis (NEES, 1 for an ellipse the size of the error, below 1 wider).
 
@@ -16,14 +17,22 @@ import argparse
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from bench.common import report
-from bench.robustness import draw, fly, wrong_priors
+from bench.robustness import Draw, draw, fly, wide_ranges, wrong_priors
 from navd.analysis.jobs import default_jobs, run_all
 from navd.analysis.report import noise_verdict
 from navd.analysis.score import score
 from navd.schema import RangeDecision
+
+# each variant of the draws, by the words its rows go by
+VARIANTS: dict[str, Callable[[Draw], Draw]] = {
+    "as drawn": lambda dr: dr,
+    "with every prior too small": wrong_priors,
+    "with ranges noisier than the config says": wide_ranges,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,7 +40,7 @@ class Checked:
     seed: int
     cls: str
     kind: str
-    wrong: bool
+    variant: str
     # fits | wider | narrower | unjudged (too few from fixed transponders) | none (too few
     # accepted ranges at all) | error
     verdict: str
@@ -39,17 +48,17 @@ class Checked:
     nees: float
 
 
-def check_one(seed: int, wrong: bool) -> Checked:
-    dr = wrong_priors(draw(seed)) if wrong else draw(seed)
+def check_one(seed: int, variant: str) -> Checked:
+    dr = VARIANTS[variant](draw(seed))
     out, err, truth = fly(dr)
     nan = float("nan")
     if err:
-        return Checked(seed, dr.cls, dr.kind, wrong, "error", nan, nan)
+        return Checked(seed, dr.cls, dr.kind, variant, "error", nan, nan)
     v = noise_verdict(o for o in out if isinstance(o, RangeDecision))
     nees = score(out, truth).nees
     if v is None:
-        return Checked(seed, dr.cls, dr.kind, wrong, "none", nan, nees)
-    return Checked(seed, dr.cls, dr.kind, wrong, v.verdict, v.mean_nis, nees)
+        return Checked(seed, dr.cls, dr.kind, variant, "none", nan, nees)
+    return Checked(seed, dr.cls, dr.kind, variant, v.verdict, v.mean_nis, nees)
 
 
 def _row(name: str, rs: list[Checked]) -> str:
@@ -75,8 +84,9 @@ def table(results: list[Checked], missions: int) -> str:
     lines = [
         f"`python -m bench.noise_check --missions {missions}`",
         "",
-        f"The {missions} missions of `make bench-robustness`, as drawn and with every "
-        "prior 3 to 10 times too small (`--wrong-priors`), each replayed and judged as "
+        f"The {missions} missions of `make bench-robustness`, as drawn, with every "
+        "prior 3 to 10 times too small (`--wrong-priors`) and with ranges 1.5 to 3 times "
+        "noisier than the config says (`--wide-ranges`), each replayed and judged as "
         "`navd report` judges it, from its accepted ranges' mean NIS alone: *wider* "
         "(below 0.45: the ellipse is likely wider than the error), *narrower* (above 2), "
         "*fits*, or *no verdict* (fewer than 30 accepted ranges from fixed transponders: "
@@ -91,18 +101,16 @@ def table(results: list[Checked], missions: int) -> str:
         "| median NEES | NEES > 1 |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for wrong in (False, True):
-        rs = [r for r in results if r.wrong == wrong]
-        label = "with every prior too small" if wrong else "as drawn"
+    for label in VARIANTS:
+        rs = [r for r in results if r.variant == label]
         lines.append(_row(f"**{label}**", rs))
         for kind, name in (("beacon", "single beacon"), ("lbl-2", "2-transponder"),
                            ("lbl-3", "3-transponder")):  # fmt: skip
             sub = [r for r in rs if r.kind == kind]
             if sub:
                 lines.append(_row(f"{label}: {name}", sub))
-    for wrong in (False, True):
-        rs = [r for r in results if r.wrong == wrong]
-        label = "with every prior too small" if wrong else "as drawn"
+    for label in VARIANTS:
+        rs = [r for r in results if r.variant == label]
         lines.append("")
         lines.append(f"{label.capitalize()}, where the truth says otherwise:")
         lines.append("")
@@ -126,8 +134,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     seeds = list(range(1, args.missions + 1))
     t0 = time.perf_counter()
-    n = len(seeds)
-    results = run_all(check_one, seeds * 2, [False] * n + [True] * n, jobs=args.jobs)
+    variants = [v for v in VARIANTS for _ in seeds]
+    results = run_all(check_one, seeds * len(VARIANTS), variants, jobs=args.jobs)
     took = time.perf_counter() - t0
     body = table(results, args.missions) + (
         f"\n\nRan in {took / 60:.1f} min on {args.jobs} worker processes."

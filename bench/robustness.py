@@ -44,7 +44,7 @@ from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import mission_config, write_mission
 from navd.hil.world import simulate
 from navd.schema import Output
-from navd.settings import config_from_dict
+from navd.settings import NoiseConfig, config_from_dict
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5
@@ -300,6 +300,21 @@ def wrong_priors(dr: Draw) -> Draw:
     return replace(dr, scenario={**sc, "config": {**sc["config"], "navigation": navigation}})
 
 
+def wide_ranges(dr: Draw) -> Draw:
+    """The same mission with its ranges noisier than the config says: the range noise the
+    config's ``range_std_m`` (its default, as the Monte Carlo's crews keep it) times 1.5
+    to 3 (from a generator of its own, so that every other draw stays as it was).  The
+    range noise is a prior too, one a crew takes from another site's trials (Fulton's 3 m
+    at 12 kHz over kilometres, seed 003), and the filter must not grow sure of a place
+    its ranges do not give."""
+    k = random.Random(f"wide-ranges-{dr.seed}").uniform(1.5, 3.0)
+    acoustics = {
+        **dr.scenario["acoustics"],
+        "range_noise_m": round(k * NoiseConfig().range_std_m, 2),
+    }
+    return replace(dr, scenario={**dr.scenario, "acoustics": acoustics})
+
+
 def noise_seed(seed: int, k: int) -> int | None:
     """The seed of mission ``seed``'s ``k``-th other draw of noise (None: as drawn)."""
     if k <= 0:
@@ -341,14 +356,18 @@ def run_one(
     no_outliers: bool = False,
     matched: tuple[str, ...] | None = None,
     wrong: bool = False,
+    wide: bool = False,
 ) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
     with ``no_outliers``, without its outliers (:func:`clean`); with ``matched``, navd
     given those parts of the bound's own model of the mission (navd/hil/bound.py,
-    ``matched_config``); with ``wrong``, its priors too small (:func:`wrong_priors`)."""
+    ``matched_config``); with ``wrong``, its priors too small (:func:`wrong_priors`); with
+    ``wide``, its ranges noisier than the config says (:func:`wide_ranges`)."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
     if wrong:
         dr = wrong_priors(dr)
+    if wide:
+        dr = wide_ranges(dr)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     sc = scenario_from_dict(dr.scenario)
     mission = simulate(sc, noise_seed or seed)
@@ -561,6 +580,11 @@ def main() -> int:
         help="every mission's config priors on the current, heading bias and speed scale 3 "
         "to 10 times smaller than its errors, as the wrong-prior class's",
     )
+    p.add_argument(
+        "--wide-ranges",
+        action="store_true",
+        help="every mission's ranges 1.5 to 3 times noisier than the config's range_std_m",
+    )
     args = p.parse_args()
     matched = None if args.matched_noise is None else tuple(args.matched_noise or MATCHED_PARTS)
     model = (
@@ -585,6 +609,7 @@ def main() -> int:
             [args.no_outliers] * n,
             [matched] * n,
             [args.wrong_priors] * n,
+            [args.wide_ranges] * n,
             jobs=args.jobs,
             scheduler=args.scheduler,
         )
@@ -610,6 +635,7 @@ def main() -> int:
         + (" --no-outliers" if args.no_outliers else "")
         + (f" --noise-draw {args.noise_draw}" if args.noise_draw else "")
         + (" --wrong-priors" if args.wrong_priors else "")
+        + (" --wide-ranges" if args.wide_ranges else "")
         + model
         + "`"
     )
@@ -625,11 +651,13 @@ def main() -> int:
         + "-no-outliers" * args.no_outliers
         + (f"-noise-draw-{args.noise_draw}" if args.noise_draw else "")
         + "-wrong-priors" * args.wrong_priors
+        + "-wide-ranges" * args.wide_ranges
         + model.replace(" --", "-").replace(" ", "-"),
         "Robustness"
         + " without outliers" * args.no_outliers
         + (f", noise draw {args.noise_draw}" if args.noise_draw else "")
         + " with every class's priors too small" * args.wrong_priors
+        + " with ranges noisier than the config says" * args.wide_ranges
         + ("" if matched is None else " with the bound's noise model")
         + (f" ({', '.join(args.matched_noise)} only)" if args.matched_noise else ""),
     )

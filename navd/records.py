@@ -163,6 +163,9 @@ class Resume:
     # how often replies read long past the gate (navd/filter/common.py,
     # ``Held.long_refused``): the forgotten counts of such refusals and of ranges
     long_refused: tuple[float, float] | None = None
+    # the range noise learnt beyond the config's (navd/filter/common.py,
+    # ``Held.range_noise``): the forgotten sums over its pairs of residuals
+    range_noise: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True, slots=True)

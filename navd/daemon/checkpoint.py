@@ -176,6 +176,7 @@ def resume_record(snap: JsonObject, t: float) -> Resume | str:
             number_or_none(snap.get("range_scale_var")),
             _held_or_none(snap.get("beacon_outage"), 8),
             _pair(_held_or_none(snap.get("long_refused"), 2)),
+            _held_or_none(snap.get("range_noise"), 4),
         )
     except (KeyError, TypeError, ValueError):
         return "fields missing or not numbers"

@@ -217,6 +217,9 @@ class Held:
     # how often replies read long past the gate: the forgotten counts of such refusals and
     # of ranges (navd/filter/ekf_ranges.py, RangeFusion.long_refused)
     long_refused: tuple[float, float] | None = None
+    # the range noise learnt beyond the config's: the forgotten sums of its pairs of
+    # residuals (navd/filter/range_noise.py, RangeNoise.held)
+    range_noise: tuple[float, ...] | None = None
 
 
 class NavFilter(Protocol):

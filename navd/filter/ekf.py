@@ -83,7 +83,11 @@ class RangeEKF(RangeFusion):
         it folded in: the resumed filter holds no sensitivity to them yet."""
         s, m, added = self.biases.held(self.path)
         P = self.P + added
-        return self.x.copy(), P, Held((s, m), self.outage_held(), self.long_refused_held())
+        return (
+            self.x.copy(),
+            P,
+            Held((s, m), self.outage_held(), self.long_refused_held(), self.range_noise.held()),
+        )
 
     def restore(
         self, x: np.ndarray, P: np.ndarray, grow_m2: float, held: Held | None = None
@@ -100,6 +104,7 @@ class RangeEKF(RangeFusion):
             self.biases.restart(self.path)
         self.resume_outage(held.outage)
         self.resume_long_refused(held.long_refused)
+        self.range_noise.resume(held.range_noise)
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

@@ -40,6 +40,7 @@ from navd.filter.common import HUBER_K, GateDecision, RangeMeas, joseph_update
 from navd.filter.ekf_core import N_STATES, WINDOW_S, EkfCore
 from navd.filter.integrity import chi2_quantile
 from navd.filter.range_biases import RangeBiases
+from navd.filter.range_noise import RangeNoise
 from navd.filter.relinearise import LineOfSight
 from navd.settings import NoiseConfig
 
@@ -91,6 +92,8 @@ class RangeFusion(EkfCore):
         # the ranges' scale error (the configured sound speed's) and the surveyed
         # transponders' position errors, estimated beside the filter
         self.biases = RangeBiases(sound_speed_rel_std)
+        # what the ranges carry beyond the config's noise (never less than it)
+        self.range_noise = RangeNoise(noise.range_std_m**2, gate_chi2, gate_chi2_long)
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -131,6 +134,7 @@ class RangeFusion(EkfCore):
         self._nis.clear()
         self._window.clear()
         self._steps.clear()
+        self.range_noise.forget_last()
 
     def move_to(self, x: np.ndarray, grow: np.ndarray) -> None:
         """Take another filter's mean, this one's covariance grown by ``grow`` (the bank
@@ -357,7 +361,7 @@ class RangeFusion(EkfCore):
         extrapolated = self._extrapolation(m)
         x_prior, P_prior = self.x.copy(), self.P.copy()
         expected, H, sight = self._line_of_sight(m)
-        r_var = max(m.std_m**2 - extrapolated**2, 1e-6)
+        r_var = max(m.std_m**2 - extrapolated**2, 1e-6) + self.range_noise.extra_var
         untracked = m.beacon != self.primary and not surveyed
         if untracked:
             # a wandering error of another beacon's position is not a state: count it as
@@ -394,6 +398,7 @@ class RangeFusion(EkfCore):
             return GateDecision(False, residual, gate_m, "gate", on_residual=True)
         self._window.append((m, False))
         self._count_long(False)
+        self.range_noise.accepted(m.beacon, residual, S)
         self._nis.append(self.last_nis)
         if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
             # Accepted, but the recent ranges together say the covariance claims too
@@ -532,7 +537,7 @@ class RangeFusion(EkfCore):
         rays = []
         for m, rejected in self._window:
             b_lat, b_lon = m.beacon_lat, m.beacon_lon
-            sigma2 = m.std_m**2 + m.beacon_position_std_m**2
+            sigma2 = m.std_m**2 + m.beacon_position_std_m**2 + self.range_noise.extra_var
             if m.beacon == self.primary:
                 b_lat, b_lon = geodesy.offset_position(
                     b_lat, b_lon, float(self.x[6]), float(self.x[7]), m.beacon_hd

@@ -38,6 +38,8 @@ class Resuming(NavParts):
             snap["beacon_outage"] = list(held.outage)
         if held.long_refused is not None:
             snap["long_refused"] = list(held.long_refused)
+        if held.range_noise is not None:
+            snap["range_noise"] = list(held.range_noise)
         return snap
 
     def _on_resume(self, rec: Resume) -> None:
@@ -64,7 +66,9 @@ class Resuming(NavParts):
         scale = None
         if rec.range_scale is not None and rec.range_scale_var is not None:
             scale = (rec.range_scale, rec.range_scale_var)
-        self.filter.restore(x, P, grow, Held(scale, rec.beacon_outage, rec.long_refused))
+        self.filter.restore(
+            x, P, grow, Held(scale, rec.beacon_outage, rec.long_refused, rec.range_noise)
+        )
         self._t_filter = rec.t
         self.dr.reset(float(x[0]), float(x[1]))
         if rec.surface_bar is not None:

@@ -166,10 +166,11 @@ def _parse_resume(o: JsonObject, t: float) -> Resume:
     outage = _exactly(o, "beacon_outage", 8)
     counts = _exactly(o, "long_refused", 2)
     long_refused = None if counts is None else (counts[0], counts[1])
+    range_noise = _exactly(o, "range_noise", 4)
     return Resume(
         t, mode, x, P, _num(o, "age_s"), _opt(o, "surface_bar"), _opt(o, "surface_alt"),
         _opt(o, "depth_m"), _opt(o, "range_scale"), _opt(o, "range_scale_var"), outage,
-        long_refused,
+        long_refused, range_noise,
     )
 
 
