@@ -19,7 +19,10 @@ bank's beliefs and the re-acquisition answer that: navd/filter/bank.py).  Both r
 passed the gate, which cuts a normal residual's tails at ``sqrt(chi2)`` sigma short and
 ``sqrt(chi2_long)`` long, so the difference is judged against the truncated normal's
 variance, and a noise much wider than modelled is learnt in steps: each step widens the
-gate, and the estimate stops where the residuals fit it.
+gate, and the estimate stops where the residuals fit it.  Replies the gate refused between
+the two do not break the pair: on nets whose ranges were noisier than the config said,
+pairs of neighbours alone were fewer and showed less, learnt nothing for minutes, and
+left the nets' ellipses too narrow (BENCHMARKS.md, "Tried, not kept: a refusal breaks the pair").
 
 Only ever more than the config's: ranges quieter than the config says leave the filter
 as it was (its ellipse wider than its error, and ``navd report`` says so), since what
