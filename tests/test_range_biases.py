@@ -196,6 +196,49 @@ def _rms(errors: list[float]) -> float:
     return math.sqrt(sum(e * e for e in errors) / len(errors))
 
 
+def _learnt_at(r_var: float, rel: float = 0.004, survey: float = 0.7) -> RangeBiases:
+    """The biases learnt from the same 40 ranges, each fused at variance ``r_var``, by a
+    filter that leaves its own state as it is (the constants' own Kalman filter)."""
+    rng = np.random.default_rng(11)
+    biases = RangeBiases(rel)
+    path = [0.0] * 6
+    biases.restart(path)
+    biases.surveyed("t2", survey)
+    for i in range(40):
+        path[0] += 10.0
+        H = np.zeros(8)
+        bearing = float(rng.uniform(0.0, 2.0 * math.pi))
+        H[0], H[1] = math.cos(bearing), math.sin(bearing)
+        c = biases.jacobian("t2" if i % 2 else "t1", float(rng.uniform(50.0, 2000.0)), H)
+        biases.ranged(path, np.zeros(8), H, c, float(rng.normal(0.0, 0.5)), r_var)
+    return biases
+
+
+def test_ranges_found_noisier_leave_the_biases_as_sure_as_ranges_that_noisy_make_them() -> None:
+    """Ranges fused at 4 m^2 that the range noise then shows were 10 m^2: the biases are
+    left exactly as sure as 10 m^2 ranges would have made them (a linear model, in
+    information form), and ranges found no noisier leave them as they are."""
+    noisier = _learnt_at(4.0)
+    noisier.deweight(2.5)
+    assert np.allclose(noisier.M, _learnt_at(10.0).M, rtol=1e-9, atol=1e-15)
+    same = _learnt_at(4.0)
+    for ratio in (1.0, 0.5, math.nan, math.inf, -2.0):
+        same.deweight(ratio)
+    assert np.array_equal(same.M, _learnt_at(4.0).M)
+
+
+def test_ranges_found_far_noisier_leave_the_biases_no_surer_than_their_priors() -> None:
+    """However much noisier the ranges prove, the biases are never less sure than their
+    priors; a scale the crew gave as known (no sound speed error) stays known."""
+    far = _learnt_at(4.0)
+    far.deweight(1e12)
+    assert np.allclose(np.diag(far.M), [0.004**2, 0.49, 0.49], rtol=1e-6)
+    known = _learnt_at(4.0, rel=0.0)
+    known.deweight(3.0)
+    assert known.M[0, 0] == 0.0 and not known.M[0, 1:].any()
+    assert np.all(np.diag(known.M)[1:] <= 0.49) and np.all(np.diag(known.M)[1:] > 0.0)
+
+
 def test_a_transponder_net_learns_the_sound_speed_the_crew_got_wrong() -> None:
     """The crew's surface temperature 4 C warm (about 13 m/s, 0.9 % of every range): the
     sound speed is learnt to within 3 m/s, and the position is at least twice as close as
@@ -393,8 +436,11 @@ def test_it_never_raises(
         c.corrected(r)
         c.offset(beacon)
         c.ranged(at, K, H, j, nu, var)
+        c.deweight(r)
+        c.deweight(nu)
         S2 = np.reshape(s2, (2, 2))
         c.fixed(at, np.array([k, k]).T, np.array([h, h]), np.array([nu, var]), S2)
         c.position([t + 1.0, *at[1:]])
         c.held(at)
     assert 1.0 + c.s > 0.0
+    assert np.all(np.diag(c.M) >= 0.0)

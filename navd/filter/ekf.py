@@ -76,6 +76,7 @@ class RangeEKF(RangeFusion):
         self._forget_ranges()  # ranges from before would not chain to this state
         self._outage = None  # the offset states start again at their prior
         self.biases.restart(self.path)
+        self._fused_extra = self.range_noise.extra_var  # the biases at their priors
         self.history.add(t, np.eye(N_STATES), self.x.copy(), self.P.copy())
 
     def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
@@ -105,6 +106,7 @@ class RangeEKF(RangeFusion):
         self.resume_outage(held.outage)
         self.resume_long_refused(held.long_refused)
         self.range_noise.resume(held.range_noise)
+        self._fused_extra = self.range_noise.extra_var  # the checkpoint held its scale at it
         self.history.correct(self.x.copy(), self.P.copy())
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:

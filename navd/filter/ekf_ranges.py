@@ -94,6 +94,8 @@ class RangeFusion(EkfCore):
         self.biases = RangeBiases(sound_speed_rel_std)
         # what the ranges carry beyond the config's noise (never less than it)
         self.range_noise = RangeNoise(noise.range_std_m**2, gate_chi2, gate_chi2_long)
+        # the most extra range variance the biases' information has been weighed at
+        self._fused_extra = 0.0
         self.gate_chi2 = gate_chi2
         self.gate_chi2_long = gate_chi2_long
         self.reacquire_after = reacquire_after
@@ -399,6 +401,11 @@ class RangeFusion(EkfCore):
         self._window.append((m, False))
         self._count_long(False)
         self.range_noise.accepted(m.beacon, residual, S)
+        if self.range_noise.extra_var > self._fused_extra:
+            # the biases learnt from ranges fused as quieter than they are
+            r0 = m.std_m**2
+            self.biases.deweight((r0 + self.range_noise.extra_var) / (r0 + self._fused_extra))
+            self._fused_extra = self.range_noise.extra_var
         self._nis.append(self.last_nis)
         if len(self._nis) == self._nis.maxlen and sum(self._nis) > self._nis_limit:
             # Accepted, but the recent ranges together say the covariance claims too

@@ -66,6 +66,7 @@ class RangeBiases:
         self._beacons: dict[str, int] = {}  # a transponder's first slot in beta
         self.beta = np.zeros(1)
         self.M = np.array([[self.var]])
+        self._prior = np.array([self.var])  # each bias's prior variance (M's diagonal at first)
         self._at: tuple[float, ...] = (0.0,) * 6  # the filter's path when psi was last set
         self._psi = np.zeros((N, 1))  # the filter's error per unit of each bias, there
         self._alone: tuple[float, ...] | None = None
@@ -97,6 +98,7 @@ class RangeBiases:
         self._beacons = {}
         self.beta = np.zeros(1)
         self.M = np.array([[self.var]])
+        self._prior = np.array([self.var])
         self.reset(at)
 
     def resume(self, at: Path, s: float, m: float) -> bool:
@@ -139,7 +141,36 @@ class RangeBiases:
         M[:k, :k] = self.M
         M[k, k] = M[k + 1, k + 1] = std_m * std_m
         self.M = M
+        self._prior = np.append(self._prior, (std_m * std_m, std_m * std_m))
         self._psi = np.hstack([self._psi, np.zeros((N, 2))])
+        self._cache()
+
+    def deweight(self, ratio: float) -> None:
+        """The ranges turned out ``ratio`` times noisier than they were fused as (the
+        range noise learnt beside the filter, navd/filter/range_noise.py, grew): what the
+        biases learnt from them was claimed that many times too sure.  They are constants,
+        with no process noise to forget an early overconfidence, so a scale learnt from the
+        first minutes' ranges, before their noise was, would stay too sure all mission, and
+        a vehicle far from its net, where scale and position trade along the line of sight,
+        with it.  In information form M^-1 = M0^-1 + J, J what the ranges taught (M0 the
+        priors); they taught J / ratio."""
+        if not (math.isfinite(ratio) and ratio > 1.0):
+            return
+        known = np.flatnonzero(self._prior > 0.0)  # a zero prior is a bias taken as known
+        if len(known) == 0:
+            return
+        sub = np.ix_(known, known)
+        prior_info = np.diag(1.0 / self._prior[known])
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            try:
+                info = np.linalg.inv(self.M[sub])
+                M = np.linalg.inv(prior_info + (info - prior_info) / ratio)
+            except np.linalg.LinAlgError:
+                return
+        M = 0.5 * (M + M.T)
+        if not (np.isfinite(M).all() and np.diag(M).min() >= 0.0):
+            return
+        self.M[sub] = M
         self._cache()
 
     def offset(self, beacon: str) -> tuple[float, float] | None:
