@@ -2,11 +2,14 @@
 
     python -m bench.compare_missions BEFORE.jsonl AFTER.jsonl [--from-seed N]
 
-BEFORE and AFTER are ``python -m bench.robustness --missions-out`` files.  Per class and
-over all: the RMS over the bound as the robustness table takes it, the truth inside the
-95 % ellipse (mean of ``inside95``), the geometric mean of the per-mission RMS ratio,
-the missions more than 5 % better or worse, and the missions whose ``ok`` held the
-truth outside the 99 % ellipse more than 3 % of the time; then the largest changes.
+BEFORE and AFTER are ``python -m bench.robustness --missions-out`` files.  Per class, per
+geometry (a single moving beacon, or a net of 2 or 3 transponders) and over all: the RMS
+over the bound as the robustness table takes it, the truth inside the 95 % ellipse (mean
+of ``inside95``), the geometric mean of the per-mission RMS ratio, the missions more than
+5 % better or worse, the truth inside the 99 % ellipse while ``ok`` (mean of
+``ok_inside99`` over the missions that were ever ``ok``), the missions whose ``ok`` held
+the truth outside it more than 3 % of the time, and the divergences; then the largest
+changes.
 """
 
 from __future__ import annotations
@@ -39,16 +42,33 @@ def _false_ok(row: dict[str, Any]) -> bool:
     return v is not None and not math.isnan(v) and v < 0.97
 
 
+_GEOMETRY = {"beacon": "single beacon", "lbl-2": "2-transponder", "lbl-3": "3-transponder"}
+
+
+def _ok99(row: dict[str, Any]) -> float | None:
+    v = row["default"]["ok_inside99"]
+    return None if v is None or math.isnan(v) else float(v)
+
+
+def _mean_ok99(rows: list[dict[str, Any]]) -> str:
+    vs = [v for v in map(_ok99, rows) if v is not None]
+    return f"{sum(vs) / len(vs):.3f}" if vs else "-"
+
+
 def compare(before: dict[int, dict[str, Any]], after: dict[int, dict[str, Any]]) -> list[str]:
     seeds = sorted(set(before) & set(after))
     groups: dict[str, list[int]] = defaultdict(list)
     for s in seeds:
         groups[before[s]["class"]].append(s)
-        groups["all"].append(s)
+    for s in seeds:
+        kind = str(before[s].get("kind"))
+        groups[_GEOMETRY.get(kind, kind)].append(s)
+    groups["all"] = seeds
     lines = [
         "| class | missions | / bound before | after | in95 before | after | ratio "
-        "| better / worse | false ok before | after |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| better / worse | ok in99 before | after | false ok before | after "
+        "| divergences before | after |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, ss in groups.items():
         bound = _rms([before[s]["bound_m"] for s in ss])
@@ -65,7 +85,10 @@ def compare(before: dict[int, dict[str, Any]], after: dict[int, dict[str, Any]])
             f"| {name} | {len(ss)} | {' | '.join(cells)} | "
             f"{math.exp(sum(logs) / len(logs)):.3f} | "
             f"{sum(x < -_SIGNIFICANT for x in logs)} / {sum(x > _SIGNIFICANT for x in logs)} | "
-            f"{sum(_false_ok(before[s]) for s in ss)} | {sum(_false_ok(after[s]) for s in ss)} |"
+            f"{_mean_ok99([before[s] for s in ss])} | {_mean_ok99([after[s] for s in ss])} | "
+            f"{sum(_false_ok(before[s]) for s in ss)} | {sum(_false_ok(after[s]) for s in ss)} | "
+            f"{sum(bool(before[s].get('diverged')) for s in ss)} | "
+            f"{sum(bool(after[s].get('diverged')) for s in ss)} |"
         )
     moved = sorted(
         seeds,
