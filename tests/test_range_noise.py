@@ -105,6 +105,22 @@ def test_a_new_beacon_or_a_forgotten_past_pairs_nothing() -> None:
     assert rn.extra_var > 0.0
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 3.5), st.sampled_from([(9.0, 4.0), (9.0, 9.0), (16.0, 1.0)]))
+def test_the_noise_the_pairs_show_is_the_one_whose_ratio_they_show(
+    rho: float, gate: tuple[float, float]
+) -> None:
+    """The u found for a ratio of pairs gives that ratio back to a part in 1e9 (what the
+    bisection it replaced gave), or is the end of its range the ratio lies beyond."""
+    rn = RangeNoise(9.0, *gate)
+    u = rn._u_showing(rho)
+    assert 0.5 <= u <= 10.0
+    if rn._ratio(10.0) < rho < rn._ratio(0.5):
+        assert math.isclose(rn._ratio(u), rho, rel_tol=1e-9, abs_tol=1e-12)
+    else:
+        assert u in (0.5, 10.0)
+
+
 finite = st.floats(allow_nan=True, allow_infinity=True)
 
 

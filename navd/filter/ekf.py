@@ -169,19 +169,17 @@ class RangeEKF(RangeFusion):
         return StateEstimate(lat, lon, cn, ce, pnn, pee, pne)
 
     def estimate(self) -> StateEstimate:
-        est = self.estimate_of(self.x, self.P)
+        # estimate_of's reading inline: each tick asks twice (the bank's two beliefs)
+        lat, lon, cn, ce = self.x[:4].tolist()
+        (pnn, pne), (_, pee) = self.P[:2, :2].tolist()
         dnn, dee, dne = self.biases.position(self.path)
         if self.consider is not None:
             nn, ee, ne = self.consider.position(self.t)
             dnn, dee, dne = dnn + nn, dee + ee, dne + ne
-        return StateEstimate(
-            est.lat, est.lon, est.current_n, est.current_e,
-            est.var_n + dnn, est.var_e + dee, est.cov_ne + dne,
-        )  # fmt: skip
+        return StateEstimate(lat, lon, cn, ce, pnn + dnn, pee + dee, pne + dne)
 
     def apply_fix(self, fix: Fix) -> None:
         """Ranges reach this mode one by one; the net's fix only starts it without GPS."""
 
     def corrections(self) -> Corrections | None:
-        x = self.x
-        return Corrections(float(x[4]), float(x[5]), float(x[6]), float(x[7]))
+        return Corrections(*self.x[4:8].tolist())

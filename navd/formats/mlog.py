@@ -380,14 +380,15 @@ def iter_lines(
             except jsonlines.DecodeError as exc:
                 raise ValueError(f"invalid JSON ({exc.__class__.__name__})") from None
             rec: Record
-            if isinstance(obj, dict) and obj.get("type") == "estimate":
+            kind = obj.get("type") if isinstance(obj, dict) else None
+            if kind == "estimate":
                 t_tick = obj.get("t")
                 if isinstance(t_tick, bool) or not isinstance(t_tick, float | int):
                     continue
                 if not (math.isfinite(t_tick) and abs(t_tick) <= MAX_ABS_T):
                     raise ValueError(f"estimate line with an impossible time {t_tick!r:.20}")
                 rec = Tick(float(t_tick))  # where the daemon stepped its filter
-            elif isinstance(obj, dict) and obj.get("type") in LOG_ONLY_TYPES:
+            elif isinstance(kind, str) and kind in LOG_ONLY_TYPES:  # a list is unhashable
                 continue
             else:
                 rec = parse_record(obj)
