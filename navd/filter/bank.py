@@ -86,6 +86,7 @@ from navd.filter.consider import CurrentConsider
 from navd.filter.ekf import RangeEKF
 from navd.filter.integrity import chi2_quantile
 from navd.filter.lsfix import Fix
+from navd.filter.mirror import MirrorTwin
 from navd.settings import NoiseConfig
 
 # The uncalibrated belief: the config's priors times _WIDEN (the Monte Carlo's wrong
@@ -177,6 +178,8 @@ class CalibrationBank:
         self.refuted = False  # the config's priors, by the config filter's own estimate
         self._t0 = 0.0  # when the priors were set (the walks grow them from then)
         self._lost_run = 0  # ranges in a row that said the uncalibrated belief is lost
+        # a net of two transponders: the other crossing of their circles
+        self.mirror = MirrorTwin()
 
     @property
     def followed(self) -> RangeEKF:
@@ -220,6 +223,7 @@ class CalibrationBank:
         self.refuted = False
         self._t0 = t
         self._lost_run = 0
+        self.mirror.forget()
 
     def checkpoint(self) -> tuple[np.ndarray, np.ndarray, Held]:
         return self.followed.checkpoint()
@@ -243,6 +247,7 @@ class CalibrationBank:
         self.uncal.restore(x, P * np.outer(k, k), grow_m2, held)
         self.w_uncal = _PRIOR
         self._lost_run = 0
+        self.mirror.forget()  # the side is the checkpoint's, as its estimate says
         # a checkpoint of a refuted config's run holds the uncalibrated filter's
         # calibration, and the next update refutes the priors again
         self.refuted = False
@@ -292,13 +297,16 @@ class CalibrationBank:
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
         self.config.predict(t, dt, heading, speed, hd)
         self.uncal.predict(t, dt, heading, speed, hd)
+        self.mirror.predict(t, dt, heading, speed, hd)
 
     def gps_update(self, lat: float, lon: float, std_m: float, hd: float) -> None:
         self.config.gps_update(lat, lon, std_m, hd)
         self.uncal.gps_update(lat, lon, std_m, hd)
+        self.mirror.reset()  # the fix says which side
         self._test_priors()
 
     def range_update(self, m: RangeMeas) -> GateDecision:
+        self.mirror.heard(m)
         decision = self.config.range_update(m)
         reacquisitions = self.uncal.reacquisitions
         du = self.uncal.range_update(m)
@@ -311,7 +319,10 @@ class CalibrationBank:
         self.w_uncal = num / den if den > 0.0 and math.isfinite(den) else w
         self._watch_lost(decision, du, self.uncal.reacquisitions > reacquisitions)
         self._test_priors()
-        return du if self.refuted else decision
+        followed = du if self.refuted else decision
+        self.mirror.weigh(m, followed.accepted, 2 * self.config.reacquire_after)
+        self.mirror.settle(self.followed)
+        return followed
 
     def estimate(self) -> StateEstimate:
         a = self.config.estimate()
@@ -326,15 +337,17 @@ class CalibrationBank:
         # the other belief's mean seen from the followed one's (kilometres apart at most)
         n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
         if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
-            return a  # a broken other belief says nothing of this one's spread
-        return StateEstimate(
-            a.lat,
-            a.lon,
-            a.current_n,
-            a.current_e,
-            (1.0 - w) * a.var_n + w * (b.var_n + n * n),
-            (1.0 - w) * a.var_e + w * (b.var_e + e * e),
-            (1.0 - w) * a.cov_ne + w * (b.cov_ne + n * e),
+            return self.mirror.mixed(a)  # a broken other belief says nothing of this one's spread
+        return self.mirror.mixed(
+            StateEstimate(
+                a.lat,
+                a.lon,
+                a.current_n,
+                a.current_e,
+                (1.0 - w) * a.var_n + w * (b.var_n + n * n),
+                (1.0 - w) * a.var_e + w * (b.var_e + e * e),
+                (1.0 - w) * a.cov_ne + w * (b.cov_ne + n * e),
+            )
         )
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
