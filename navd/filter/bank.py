@@ -31,7 +31,8 @@ errors of a metre, BENCHMARKS.md).
 The mean is not moved to the mixture's: with one beacon a wrong filter still predicts
 the next range well while it sits on the same circle, so a few ranges can give a
 diverged ``uncal`` nearly all the weight, and following it made the drawn missions
-worse (BENCHMARKS.md).
+worse (BENCHMARKS.md).  With a net of two transponders the ellipse holds the other
+crossing of their circles too (navd/filter/mirror.py).
 
 Until the config's priors are refuted.  The config filter's own calibration is then
 further from them than they allow: its current, heading bias and speed scale, against
