@@ -6,6 +6,8 @@ import math
 import random
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from navd import geodesy
 from navd.filter.bank import CalibrationBank
@@ -120,3 +122,43 @@ def test_a_gps_fix_or_a_restart_ends_the_twin() -> None:
     x, P, held = bank.checkpoint()
     bank.restore(x, P, 0.0, held)
     assert bank.mirror.twin is None
+
+
+# what the navigator can hand a filter: transponders that are somewhere (records.py's
+# bounds), and ranges of any length, or none the float could hold
+near = st.one_of(st.floats(-0.001, 0.001), st.floats(-0.5, 0.5), st.just(0.0))
+any_float = st.floats(allow_nan=True, allow_infinity=True)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["t1", "t2", "t3"]),
+            near,
+            near,
+            st.one_of(st.floats(0.0, 3000.0), any_float),
+            st.floats(0.1, 30.0),
+            st.floats(0.0, 6.3),
+        ),
+        max_size=40,
+    ),
+    st.floats(1.0, 300.0),
+)
+def test_no_net_of_any_ranges_makes_the_twin_raise(
+    ranges: list[tuple[str, float, float, float, float, float]], std_m: float
+) -> None:
+    """Transponders anywhere, together or apart, ranges of any length, ellipses of any
+    size: the bank with its twin never raises, and a twin is only ever a finite one of a
+    weight in (0, 1)."""
+    bank = CalibrationBank(RangeEKF(NoiseConfig(), 9.0, 4.0, 3, max_current_mps=2.0))
+    bank.initialise(LAT, LON, std_m, 0.0)
+    for name, dlat, dlon, r, dt, heading in ranges:
+        t = bank.config.t + dt
+        bank.predict(t, dt, heading, 1.5, HD)
+        bank.range_update(RangeMeas(t, t, r, name, LAT + dlat, LON + dlon, HD, HD, 1.0))
+        bank.estimate()
+        twin = bank.mirror.twin
+        if twin is not None:
+            assert 0.0 < bank.mirror.w < 1.0
+            assert np.isfinite(twin.x).all() and np.isfinite(twin.P).all()
