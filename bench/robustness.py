@@ -62,6 +62,9 @@ CLASSES: dict[str, int] = {
     "tidal-turning": 1,  # a tidal stream that turns during the mission
     "boat-outage": 1,  # the boat's location line down for 1 to 5 minutes
 }
+#: the geometries a base mission is drawn in (weights 3, 1, 1): a moving beacon, or a
+#: net of 2 or 3 surveyed transponders
+KINDS = ["beacon", "lbl-2", "lbl-3"]
 # what the draws of the base class spread the sensor errors over, as one-sigma per axis
 # (the Cramer-Rao bound's priors for the missions that draw them)
 _CURRENT_MAX_MPS = 1.0
@@ -109,7 +112,7 @@ def draw(seed: int) -> Draw:
     """The conditions of mission ``seed``: its class, then every error drawn, none chosen."""
     rng = random.Random(seed)
     cls = rng.choices(list(CLASSES), weights=list(CLASSES.values()))[0]
-    kind = rng.choices(["beacon", "lbl-2", "lbl-3"], weights=[3, 1, 1])[0]
+    kind = rng.choices(KINDS, weights=[3, 1, 1])[0]
     if cls != "base":
         kind = "beacon"
     speed = rng.uniform(1.0, 2.0)
@@ -550,6 +553,12 @@ def main() -> int:
     p.add_argument(
         "--only", choices=list(CLASSES), help="of seeds 1..--missions, those of this class"
     )
+    p.add_argument(
+        "--kind",
+        choices=KINDS,
+        help="of seeds 1..--missions, those of this geometry (a moving beacon, or a net of "
+        "2 or 3 transponders)",
+    )
     p.add_argument("--missions-out", help="write one line per mission (JSON) to this file")
     p.add_argument(
         "--noise-draw",
@@ -597,6 +606,8 @@ def main() -> int:
     seeds = list(range(1, args.missions + 1))
     if args.only:
         seeds = [s for s in seeds if draw(s).cls == args.only]
+    if args.kind:
+        seeds = [s for s in seeds if draw(s).kind == args.kind]
     # each mission's files are written and read by the one worker that runs it
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
@@ -632,6 +643,7 @@ def main() -> int:
     cmd = (
         f"`python -m bench.robustness --missions {args.missions}"
         + (f" --only {args.only}" if args.only else "")
+        + (f" --kind {args.kind}" if args.kind else "")
         + (" --no-outliers" if args.no_outliers else "")
         + (f" --noise-draw {args.noise_draw}" if args.noise_draw else "")
         + (" --wrong-priors" if args.wrong_priors else "")
