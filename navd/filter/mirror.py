@@ -11,25 +11,24 @@ to 13 m about the wrong crossing, 166 m from the truth, and integrity said ``ok`
 (BENCHMARKS.md, "The other crossing of two transponders' circles").
 
 So while the ranges come from two transponders only, the filter keeps the other
-crossing as a hypothesis of its own: a twin of the followed filter, its position
-reflected across the baseline (Gaussian-sum filtering of an ambiguous measurement,
-Alspach and Sorenson 1972; Bar-Shalom, Li and Kirubarajan 2001, 6.4 for the
-mixture's moments).  The twin is made with the weight the filter's own ellipse puts
-beyond the baseline, ``Phi(-|c| / sigma_c)`` (``c`` the estimate's distance from the
-baseline, ``sigma_c`` its std across it).  From then on it is flown like the filter:
-the same dead reckoning, its own gate on every range, and the ranges weigh the two as
-the bank weighs its beliefs (navd/filter/bank.py).  Dead reckoning is what tells the
-two apart: the twin moves as the vehicle moves, not as its mirror image would, so
-where the vehicle runs across the baseline the twin's ranges stop fitting and its
-weight goes.  Where it runs along it nothing tells them apart, and the twin stays.
+crossing as a hypothesis of its own: a twin of the followed filter, its position and
+covariance reflected across the baseline (a Gaussian sum for an ambiguous measurement,
+Alspach and Sorenson 1972).  The twin is made with the weight the filter's own ellipse
+puts beyond the baseline, ``Phi(-|c| / sigma_c)`` (``c`` the estimate's distance from
+the baseline, ``sigma_c`` its std across it), and flown like the filter: the same dead
+reckoning, its own gate and re-acquisition.  Dead reckoning is what tells the two
+apart: the twin moves as the vehicle moves, not as its mirror image would, so where the
+vehicle runs across the baseline the twin either follows it over and merges with the
+filter or stops fitting the ranges and is let go.  Where it runs along the baseline
+nothing tells them apart, and the twin stays at its weight: the ranges do not move it
+(``MirrorTwin.weigh`` says why).
 
 The published estimate is the filter's mean with the covariance of the mixture about
 it, ``(1 - w) P + w (P_twin + d d^T)``: integrity degrades while the other crossing is
 both far and likely.  While the twin lies within its own and the filter's ellipses of
 the filter's mean, it is the same hypothesis, and it is made again from the filter's
 ellipse as it is then; a GPS fix, a restart or a third transponder ends it.  The mean
-is never moved to the twin's: a twin that is likelier than the filter widens the
-ellipse, since one net's replies have already shown how little they say of the side.
+is never moved to the twin's: the net's replies cannot say which of the two is right.
 """
 
 from __future__ import annotations
@@ -119,8 +118,8 @@ class MirrorTwin:
         accepted it refused on their residuals, as dead reckoning across the baseline
         makes it.  Its weight is not moved by how well each predicts the ranges: the two
         crossings predict them alike, and what tells them apart per range is the noise
-        and how far each filter has converged, which drove a twin 8 m from the truth to
-        nothing while the followed filter sat 160 m off (BENCHMARKS.md)."""
+        and how far each filter has converged, which drove a twin 8 to 33 m from the
+        truth to nothing while the followed filter sat 160 m off (BENCHMARKS.md)."""
         twin = self.twin
         if twin is None:
             return
