@@ -47,10 +47,8 @@ from navd.filter.ekf import RangeEKF
 _RECENT_RANGES = 10
 # transponders nearer than this define no baseline the ranges could mirror across
 _MIN_BASELINE_M = 10.0
-# the weight beyond the baseline below which no twin is made, and below which a twin
-# the ranges have weighed down is let go
+# the weight beyond the baseline below which no twin is made
 _MIN_WEIGHT = 1e-3
-_DROP_WEIGHT = 1e-4
 # the squared distance (in the two ellipses summed) within which the twin is the
 # filter's own hypothesis again
 _MERGED_D2 = 1.0
@@ -59,12 +57,6 @@ _MERGED_D2 = 1.0
 def _phi_tail(z: float) -> float:
     """P(Z > z) for a unit normal Z."""
     return 0.5 * math.erfc(z / math.sqrt(2.0))
-
-
-def _offsets(
-    lat0: float, lon0: float, points: tuple[tuple[float, float], ...]
-) -> list[tuple[float, float]]:
-    return [geodesy.nearby_offset(lat0, lon0, la, lo) for la, lo in points]
 
 
 class MirrorTwin:
@@ -78,7 +70,8 @@ class MirrorTwin:
         self._where: dict[str, tuple[float, float]] = {}  # each transponder's position
 
     def reset(self) -> None:
-        """A start, a restart or a GPS fix: the side is known (or must be found) again."""
+        """No twin: a GPS fix said the side, or the net is not two transponders, or the
+        twin was lost, broken or merged."""
         self.twin = None
         self.w = 0.0
         self._lost = 0
@@ -143,7 +136,7 @@ class MirrorTwin:
         if self.twin is not None and not self._merged(followed, self.twin):
             return
         lat0, lon0, nn, ne = line
-        ((n, e),) = _offsets(lat0, lon0, ((float(followed.x[0]), float(followed.x[1])),))
+        n, e = geodesy.nearby_offset(lat0, lon0, float(followed.x[0]), float(followed.x[1]))
         c = n * nn + e * ne
         est = followed.estimate()
         var_c = nn * nn * est.var_n + ne * ne * est.var_e + 2.0 * nn * ne * est.cov_ne
@@ -195,8 +188,8 @@ class MirrorTwin:
 def _reflected(
     f: RangeEKF, lat0: float, lon0: float, nn: float, ne: float, n: float, e: float
 ) -> RangeEKF:
-    """A copy of ``f`` at the point (``n``, ``e``) metres from (``lat0``, ``lon0``), the
-    reflection of its own across the line through that point of unit normal (``nn``,
+    """A copy of ``f`` at (``n``, ``e``) metres from (``lat0``, ``lon0``), the reflection
+    of its position across the line through (``lat0``, ``lon0``) of unit normal (``nn``,
     ``ne``); its covariance reflected with it, and what the biases' uncertainty adds to
     it folded in (as a checkpoint folds it), since the copy starts their sensitivity
     afresh.  The ranges it remembers were fused on the other side, so it forgets them."""
