@@ -74,7 +74,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from navd import geodesy
 from navd.filter.common import (
     Corrections,
     GateDecision,
@@ -82,6 +81,7 @@ from navd.filter.common import (
     History,
     RangeMeas,
     StateEstimate,
+    spread_about,
 )
 from navd.filter.consider import CurrentConsider
 from navd.filter.ekf import RangeEKF
@@ -335,21 +335,7 @@ class CalibrationBank:
         w = switched(self.w_uncal)
         if self.refuted:
             a, b, w = b, a, 1.0 - w
-        # the other belief's mean seen from the followed one's (kilometres apart at most)
-        n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
-        if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
-            return self.mirror.mixed(a)  # a broken other belief says nothing of this one's spread
-        return self.mirror.mixed(
-            StateEstimate(
-                a.lat,
-                a.lon,
-                a.current_n,
-                a.current_e,
-                (1.0 - w) * a.var_n + w * (b.var_n + n * n),
-                (1.0 - w) * a.var_e + w * (b.var_e + e * e),
-                (1.0 - w) * a.cov_ne + w * (b.cov_ne + n * e),
-            )
-        )
+        return self.mirror.mixed(spread_about(a, b, w))
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
         """A state of the followed filter's chain (the smoother's), as that filter gives it."""

@@ -9,6 +9,8 @@ from typing import IO, TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
+from navd import geodesy
+
 if TYPE_CHECKING:
     from navd.filter.lsfix import Fix
 
@@ -294,6 +296,25 @@ class Smoothable(NavFilter, Protocol):
     def state_apply(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray: ...
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate: ...
+
+
+def spread_about(a: StateEstimate, b: StateEstimate, w: float) -> StateEstimate:
+    """``a`` with the covariance about its mean of the mixture that gives ``b`` the weight
+    ``w``: ``(1 - w) P_a + w (P_b + d d^T)``, ``d`` ``b``'s mean seen from ``a``'s
+    (kilometres apart at most); ``a`` itself where ``b`` is broken, which says nothing
+    of ``a``'s spread."""
+    n, e = geodesy.nearby_offset(a.lat, a.lon, b.lat, b.lon)
+    if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
+        return a
+    return StateEstimate(
+        a.lat,
+        a.lon,
+        a.current_n,
+        a.current_e,
+        (1.0 - w) * a.var_n + w * (b.var_n + n * n),
+        (1.0 - w) * a.var_e + w * (b.var_e + e * e),
+        (1.0 - w) * a.cov_ne + w * (b.cov_ne + n * e),
+    )
 
 
 def principal_axes(nn: float, ee: float, ne: float) -> tuple[float, float, float]:

@@ -40,7 +40,7 @@ from collections import deque
 import numpy as np
 
 from navd import geodesy
-from navd.filter.common import History, RangeMeas, StateEstimate
+from navd.filter.common import History, RangeMeas, StateEstimate, spread_about
 from navd.filter.ekf import RangeEKF
 
 # the ranges that say which transponders the vehicle hears (a net of two: exactly two)
@@ -169,20 +169,7 @@ class MirrorTwin:
         twin = self.twin
         if twin is None:
             return est
-        b = twin.estimate()
-        n, e = geodesy.nearby_offset(est.lat, est.lon, b.lat, b.lon)
-        if not all(map(math.isfinite, (n, e, b.var_n, b.var_e, b.cov_ne))):
-            return est
-        w = self.w
-        return StateEstimate(
-            est.lat,
-            est.lon,
-            est.current_n,
-            est.current_e,
-            (1.0 - w) * est.var_n + w * (b.var_n + n * n),
-            (1.0 - w) * est.var_e + w * (b.var_e + e * e),
-            (1.0 - w) * est.cov_ne + w * (b.cov_ne + n * e),
-        )
+        return spread_about(est, twin.estimate(), self.w)
 
 
 def _reflected(
