@@ -60,7 +60,7 @@ def compare(before: dict[int, dict[str, Any]], after: dict[int, dict[str, Any]])
     groups: dict[str, list[int]] = defaultdict(list)
     for s in seeds:
         groups[before[s]["class"]].append(s)
-    for s in seeds:
+    for s in seeds:  # after the classes, so that the geometries' rows follow theirs
         kind = str(before[s].get("kind"))
         groups[_GEOMETRY.get(kind, kind)].append(s)
     groups["all"] = seeds
