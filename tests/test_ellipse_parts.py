@@ -1,6 +1,6 @@
 """The ellipse-parts bench measures what it says (bench/ellipse_parts.py): its NEES is the
-error's distance in the ellipse, its scale is 1 for an ellipse the size of the error's,
-and its published part is the estimate navd publishes."""
+error's distance in the ellipse, its scale is 1 for an ellipse the size of the error's, and
+a mission is sampled at every submerged second, each part a covariance."""
 
 from __future__ import annotations
 
