@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import mode_config, write_section
-from bench.robustness import CLASSES, clean, draw, wrong_priors
+from bench.robustness import CLASSES, clean, draw, wide_ranges, wrong_priors
 from navd import geodesy
 from navd.analysis.jobs import default_jobs, run_all
 from navd.config import load_config
@@ -108,11 +108,13 @@ def _parts(bank: CalibrationBank, o: Estimate) -> dict[str, tuple[float, float, 
     }
 
 
-def run_one(seed: int, matched: bool, no_outliers: bool, wrong: bool) -> Nees:
+def run_one(seed: int, matched: bool, no_outliers: bool, wrong: bool, wide: bool = False) -> Nees:
     """Mission ``seed`` replayed by the default mode, its NEES by part once a second."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
     if wrong:
         dr = wrong_priors(dr)
+    if wide:
+        dr = wide_ranges(dr)
     out = Nees(dr.cls if dr.kind == "beacon" else dr.kind)
     with tempfile.TemporaryDirectory(prefix="navd-parts-") as td:
         d = Path(td) / "m"
@@ -203,6 +205,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     p.add_argument("--no-outliers", action="store_true", help="no multipath, no corrupt positions")
     p.add_argument("--wrong-priors", action="store_true", help="every class's priors too small")
+    p.add_argument(
+        "--wide-ranges",
+        action="store_true",
+        help="every mission's ranges 1.5 to 3 times noisier than the config's range_std_m",
+    )
     p.add_argument("--jobs", type=int, default=default_jobs())
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args(argv)
@@ -219,6 +226,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         [args.matched_noise] * n,
         [args.no_outliers] * n,
         [args.wrong_priors] * n,
+        [args.wide_ranges] * n,
         jobs=args.jobs,
     )
     took = (time.perf_counter() - t0) / 60.0
@@ -230,6 +238,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         + (" --matched-noise" if args.matched_noise else "")
         + (" --no-outliers" if args.no_outliers else "")
         + (" --wrong-priors" if args.wrong_priors else "")
+        + (" --wide-ranges" if args.wide_ranges else "")
     )
     body = (
         f"`{command}`\n\n{table(runs)}\n\n"
