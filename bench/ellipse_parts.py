@@ -24,7 +24,8 @@ deviation) for the truth to lie inside its 95 % ellipse 0.95 of the time,
 ``sqrt(q95(NEES) / chi2_2(0.95))``: below 1 the part is wider than the error, above 1
 narrower; and, while integrity said ``ok``, the fraction of that time the truth lies
 inside each one's 99 % ellipse.  *weight* is the mean weight of the belief that is not
-followed.
+followed.  Each figure pools the sampled seconds of the class's missions, so a long mission
+counts for more (bench/robustness.py's class figures are means over missions).
 """
 
 from __future__ import annotations
