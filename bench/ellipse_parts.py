@@ -9,8 +9,9 @@ their circles (navd/filter/mirror.py).  Where the published ellipse is wider tha
 error, this bench says which part makes it so.
 
 For each Monte Carlo mission (bench/robustness.py's draws), once a second of submerged
-time, the error's normalised squared distance (NEES, two degrees of freedom) is taken
-against three covariances about the published mean:
+time (a tick fed with a range is skipped: the bank has fused the range by the time the
+tick's estimate is read), the error's normalised squared distance (NEES, two degrees of
+freedom) is taken against three covariances about the published mean:
 
 * *followed*: the followed belief alone (its filter's covariance and its range biases'
   share);
