@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import mode_config, write_section
-from bench.robustness import CLASSES, clean, draw, wide_ranges, wrong_priors
+from bench.robustness import CLASSES, selected, variant, write_flown
 from navd import geodesy
 from navd.analysis.jobs import default_jobs, run_all
 from navd.config import load_config
@@ -52,12 +52,8 @@ from navd.filter.ekf import RangeEKF
 from navd.filter.navigator import Navigator
 from navd.formats.mlog import MeasurementStream
 from navd.formats.truth import read_truth
-from navd.hil.bound import matched_config
-from navd.hil.scenario import scenario_from_dict
-from navd.hil.sim_cli import mission_config, write_mission
-from navd.hil.world import simulate
+from navd.hil.bound import MATCHED_PARTS
 from navd.schema import Estimate, RangeDecision
-from navd.settings import config_from_dict
 
 #: chi-square on two degrees of freedom at 0.95 and 0.99: the 95 % and 99 % ellipses
 CHI2_95 = -2.0 * math.log(0.05)
@@ -112,17 +108,11 @@ def _parts(bank: CalibrationBank, o: Estimate) -> dict[str, tuple[float, float, 
 
 def run_one(seed: int, matched: bool, no_outliers: bool, wrong: bool, wide: bool = False) -> Nees:
     """Mission ``seed`` replayed by the default mode, its NEES by part once a second."""
-    dr = clean(draw(seed)) if no_outliers else draw(seed)
-    if wrong:
-        dr = wrong_priors(dr)
-    if wide:
-        dr = wide_ranges(dr)
+    dr = variant(seed, no_outliers, wrong, wide)
     out = Nees(dr.cls if dr.kind == "beacon" else dr.kind)
     with tempfile.TemporaryDirectory(prefix="navd-parts-") as td:
         d = Path(td) / "m"
-        mission = simulate(scenario_from_dict(dr.scenario), seed)
-        crew = config_from_dict(mission_config(mission))
-        write_mission(mission, d, matched_config(mission, crew) if matched else None)
+        write_flown(dr, d, None, tuple(MATCHED_PARTS) if matched else None)
         truth = {round(s.t, 1): s for s in read_truth(d / "truth.jsonl")}
         nav = Navigator(load_config(mode_config(d, "default")))
         bank = nav.filter
@@ -215,11 +205,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--jobs", type=int, default=default_jobs())
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args(argv)
-    seeds = list(range(1, args.missions + 1))
-    if args.only:
-        seeds = [s for s in seeds if draw(s).cls == args.only]
-    if args.kind:
-        seeds = [s for s in seeds if draw(s).kind == args.kind]
+    seeds = selected(args.missions, args.only, args.kind)
     n = len(seeds)
     t0 = time.perf_counter()
     runs = run_all(

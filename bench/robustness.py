@@ -42,9 +42,9 @@ from navd.formats.truth import TruthSample, read_truth
 from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
 from navd.hil.sim_cli import mission_config, write_mission
-from navd.hil.world import simulate
+from navd.hil.world import Mission, simulate
 from navd.schema import Output
-from navd.settings import NoiseConfig, config_from_dict
+from navd.settings import Config, NoiseConfig, config_from_dict
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5
@@ -346,10 +346,45 @@ def fly(dr: Draw) -> tuple[list[Output], str, list[TruthSample]]:
     with ("" when none), and its truth."""
     with tempfile.TemporaryDirectory(prefix="navd-fly-") as td:
         d = Path(td) / "m"
-        write_mission(simulate(scenario_from_dict(dr.scenario), dr.seed), d, None)
+        write_flown(dr, d, None, None)
         truth = read_truth(d / "truth.jsonl")
         out, err = replay_mission(d, "default")
     return out, err, truth
+
+
+def variant(seed: int, no_outliers: bool, wrong: bool, wide: bool) -> Draw:
+    """Mission ``seed``'s conditions as drawn, or without its outliers (:func:`clean`),
+    with its priors too small (:func:`wrong_priors`), with its ranges noisier than the
+    config says (:func:`wide_ranges`)."""
+    dr = clean(draw(seed)) if no_outliers else draw(seed)
+    if wrong:
+        dr = wrong_priors(dr)
+    if wide:
+        dr = wide_ranges(dr)
+    return dr
+
+
+def write_flown(
+    dr: Draw, d: Path, noise_seed: int | None, matched: tuple[str, ...] | None
+) -> tuple[Mission, Config]:
+    """Mission ``dr`` simulated (with ``noise_seed``'s draw of noise, or its own seed's)
+    and written to ``d`` with its crew's config, given those parts of the bound's own
+    model when ``matched`` (navd/hil/bound.py, ``matched_config``): the mission and the
+    crew's config."""
+    mission = simulate(scenario_from_dict(dr.scenario), noise_seed or dr.seed)
+    crew = config_from_dict(mission_config(mission))
+    write_mission(mission, d, None if matched is None else matched_config(mission, crew, matched))
+    return mission, crew
+
+
+def selected(missions: int, only: str | None, kind: str | None) -> list[int]:
+    """Of seeds 1..``missions``, those of class ``only`` and geometry ``kind`` (if given)."""
+    seeds = list(range(1, missions + 1))
+    if only:
+        seeds = [s for s in seeds if draw(s).cls == only]
+    if kind:
+        seeds = [s for s in seeds if draw(s).kind == kind]
+    return seeds
 
 
 def run_one(
@@ -366,16 +401,9 @@ def run_one(
     given those parts of the bound's own model of the mission (navd/hil/bound.py,
     ``matched_config``); with ``wrong``, its priors too small (:func:`wrong_priors`); with
     ``wide``, its ranges noisier than the config says (:func:`wide_ranges`)."""
-    dr = clean(draw(seed)) if no_outliers else draw(seed)
-    if wrong:
-        dr = wrong_priors(dr)
-    if wide:
-        dr = wide_ranges(dr)
+    dr = variant(seed, no_outliers, wrong, wide)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
-    sc = scenario_from_dict(dr.scenario)
-    mission = simulate(sc, noise_seed or seed)
-    crew = config_from_dict(mission_config(mission))
-    write_mission(mission, d, None if matched is None else matched_config(mission, crew, matched))
+    mission, crew = write_flown(dr, d, noise_seed, matched)
     b = mission_bound(mission, crew)
     truth = read_truth(d / "truth.jsonl")
     out_d, err_d = replay_mission(d, "default")
@@ -603,11 +631,7 @@ def main() -> int:
     )
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
-    seeds = list(range(1, args.missions + 1))
-    if args.only:
-        seeds = [s for s in seeds if draw(s).cls == args.only]
-    if args.kind:
-        seeds = [s for s in seeds if draw(s).kind == args.kind]
+    seeds = selected(args.missions, args.only, args.kind)
     # each mission's files are written and read by the one worker that runs it
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
