@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: test fuzz lint demo bench-accuracy bench-sensitivity bench-replay bench-decode bench-daemon \
-	bench-robustness bench-noise-check bench-attainable bench-ellipse-parts bench-soak bench-calibration bench-advisory bench-files bench-link-size check-armhf check-arm64 clean
+	bench-robustness bench-noise-check bench-attainable bench-ellipse-parts bench-ellipse-scan bench-soak bench-calibration bench-advisory bench-files bench-link-size check-armhf check-arm64 clean
 
 $(STAMP): pyproject.toml setup.py navd/filter/_ekf_step.c navd/filter/_window.c \
 		navd/filter/_buffer.h
@@ -73,6 +73,9 @@ bench-attainable: $(STAMP)
 # other belief's share, the considered tide) makes it wider than the error (about 5 minutes)
 bench-ellipse-parts: $(STAMP)
 	$(BIN)/python -m bench.ellipse_parts --missions 120 --write BENCHMARKS.md
+
+bench-ellipse-scan: $(STAMP)
+	$(BIN)/python -m bench.ellipse_scan --missions 120 --write BENCHMARKS.md
 
 # calibrating compass and speed from a surface circle, over 12 drawn missions (about 5 minutes)
 bench-calibration: $(STAMP)

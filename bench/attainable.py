@@ -46,6 +46,7 @@ from bench.common import write_section
 from bench.robustness import CLASSES, draw
 from navd import geodesy
 from navd.analysis.jobs import default_jobs
+from navd.filter.bank import M2_PERIOD_S
 from navd.filter.common import RangeMeas
 from navd.filter.navparts import make_filter
 from navd.hil.bound import (
@@ -69,6 +70,32 @@ from navd.settings import Config, config_from_dict, deep_merge
 
 EVAL_S = 60.0  # one evaluation a minute of submerged time
 _ITERATIONS = 3  # Gauss-Newton passes per evaluation (warm started from the last)
+_TIDE_FLOOR_MPS = 0.02  # the least constituent prior: no prediction is better
+
+
+@dataclass(frozen=True)
+class Tide:
+    """An estimator that knows the tide's form, the issue's "tidal constituents as states":
+    the water runs at the mean current plus ``a cos(wt) + b sin(wt)`` (``a``, ``b`` north
+    and east, four states, constant, each with prior std ``std_mps``) at the principal
+    lunar semidiurnal frequency.  The mean current keeps ``walk_share`` of the bound's
+    walk: the simulator's water changes only by its tide, so by default none."""
+
+    std_mps: float
+    omega: float = 2.0 * math.pi / M2_PERIOD_S
+    walk_share: float = 0.0
+
+    @staticmethod
+    def for_mission(m: Mission, factor: float | None, std_mps: float | None) -> Tide | None:
+        """The tide a crew would configure for ``m``: each constituent's std ``factor`` times
+        the mission's own amplitude over sqrt 2 (a tidal current prediction that far off),
+        or ``std_mps``; None where the mission has no tide."""
+        amp = m.scenario.current.tidal_amplitude_mps
+        if amp <= 0.0:
+            return None
+        if std_mps is None:
+            std_mps = (factor or 1.0) * amp / math.sqrt(2.0)
+        return Tide(max(_TIDE_FLOOR_MPS, std_mps))
 
 
 def _rot(b: float) -> np.ndarray:
@@ -243,11 +270,19 @@ def generate(
 class Model:
     """The bound's model between and at the nodes, for an estimator that knows it."""
 
-    def __init__(self, g: Generated, r_var: float) -> None:
+    def __init__(self, g: Generated, r_var: float, tide: Tide | None = None) -> None:
         self.g = g
         self.r_var = r_var  # a range's noise variance
-        n = g.P0.shape[0]
-        self.n = n
+        self.tide = tide
+        nb = g.P0.shape[0]
+        # with the tide's form, its four constituent states follow the bound's
+        self.tide_col = nb
+        self.n = nb + (4 if tide else 0)
+        self.P0 = np.zeros((self.n, self.n))
+        self.P0[:nb, :nb] = g.P0
+        if tide:
+            self.P0[nb:, nb:] = tide.std_mps**2 * np.eye(4)
+        self.walk_share = tide.walk_share if tide else 1.0
         # prefix sums over steps, so that a transition between any two nodes is O(1)
         steps = len(g.d_meas)
         j = np.arange(steps, dtype=float)
@@ -279,9 +314,21 @@ class Model:
         last = kb - 1
         w_pp = g.dt**2 * (last * last * s0 - 2.0 * last * s1 + s2)
         w_pc = g.dt * (last * s0 - s1)
-        Q[0:2, 0:2] = self.cq[kb] - self.cq[ka] + w_pp * np.eye(2)
-        Q[0:2, 2:4] = Q[2:4, 0:2] = w_pc * np.eye(2)
-        Q[2:4, 2:4] = s0 * np.eye(2)
+        f = self.walk_share
+        Q[0:2, 0:2] = self.cq[kb] - self.cq[ka] + f * w_pp * np.eye(2)
+        Q[0:2, 2:4] = Q[2:4, 0:2] = f * w_pc * np.eye(2)
+        Q[2:4, 2:4] = f * s0 * np.eye(2)
+        if self.tide:
+            # position integrates a cos(wt) + b sin(wt) from step ka to kb; a, b constant
+            w = self.tide.omega
+            t1, t2 = ka * g.dt, kb * g.dt
+            ic = (math.sin(w * t2) - math.sin(w * t1)) / w
+            is_ = (math.cos(w * t1) - math.cos(w * t2)) / w
+            c = self.tide_col
+            for a in range(2):
+                fx[a] += ic * x[c + a] + is_ * x[c + 2 + a]
+                F[a, c + a] = ic
+                F[a, c + 2 + a] = is_
         if g.boat_cols:
             phi = math.exp(-m * g.dt / g.boat_corr_s)
             for c in g.boat_cols:
@@ -342,7 +389,7 @@ def ekf(model: Model, nis: list[float] | None = None) -> list[np.ndarray]:
     covariance is its error's)."""
     g = model.g
     x = np.zeros(model.n)
-    P = g.P0.copy()
+    P = model.P0.copy()
     out: list[np.ndarray] = []
     prev = None
     for nd in g.nodes:
@@ -373,7 +420,7 @@ def smooth(
     Pp: list[np.ndarray] = []
     Fs: list[np.ndarray] = []
     x = np.zeros(n)
-    P = model.g.P0.copy()
+    P = model.P0.copy()
     for i, nd in enumerate(nodes):
         if i > 0:
             fx, F, Q = model.transition(nodes[i - 1].k, nd.k, lin[i - 1])
@@ -467,11 +514,20 @@ class Scored:
     navd_m: float
     navd_in95: float
     seconds: float
+    tide_m: float = math.nan  # the EKF that knows the tide's form; nan where not flown
 
 
-def run_one(seed: int, draw_no: int = 0, walk_current: bool = False) -> Scored | None:
+def run_one(
+    seed: int,
+    draw_no: int = 0,
+    walk_current: bool = False,
+    tide_factor: float | None = None,
+    tide_std: float | None = None,
+) -> Scored | None:
     """Mission ``seed`` of bench/robustness.py, with the ``draw_no``-th draw of the bound's
-    noise along its truth (with ``walk_current``, its current drawn from the bound's walk)."""
+    noise along its truth (with ``walk_current``, its current drawn from the bound's walk);
+    with ``tide_factor`` or ``tide_std``, an EKF that knows the tide's form as well
+    (:meth:`Tide.for_mission`)."""
     t0 = time.perf_counter()
     dr = draw(seed)
     m = simulate(scenario_from_dict(dr.scenario), seed)
@@ -481,6 +537,11 @@ def run_one(seed: int, draw_no: int = 0, walk_current: bool = False) -> Scored |
         return None
     model = Model(g, range_variance(m))
     lin = ekf(model)
+    tide = None
+    if tide_factor is not None or tide_std is not None:
+        tide = Tide.for_mission(m, tide_factor, tide_std)
+    tidal = ekf(Model(g, model.r_var, tide)) if tide else None
+    e_tide: list[float] = []
     matched = config_from_dict(deep_merge(mission_config(m), matched_config(m, cfg)))
     navd = iter(navd_core(g, matched, math.sqrt(model.r_var)))
     e_ekf: list[float] = []
@@ -504,6 +565,9 @@ def run_one(seed: int, draw_no: int = 0, walk_current: bool = False) -> Scored |
         ne, cov = next(navd)
         dn = ne - truth
         e_ekf.append(float(de @ de))
+        if tidal is not None:
+            dt_ = tidal[i][0:2] - truth
+            e_tide.append(float(dt_ @ dt_))
         e_full.append(float(df @ df))
         e_navd.append(float(dn @ dn))
         in_full.append(_inside95(df, P[0:2, 0:2]))
@@ -521,6 +585,7 @@ def run_one(seed: int, draw_no: int = 0, walk_current: bool = False) -> Scored |
         math.sqrt(statistics.fmean(e_navd)),
         statistics.fmean(in_navd),
         time.perf_counter() - t0,
+        math.sqrt(statistics.fmean(e_tide)) if e_tide else math.nan,
     )
 
 
@@ -548,19 +613,30 @@ def table(rows: Sequence[Scored]) -> str:
         name = f"class {r.cls}" if r.kind == "beacon" else f"{r.kind} net"
         groups.setdefault(name, []).append(r)
     groups["**all**"] = list(rows)
+    tides = any(math.isfinite(r.tide_m) for r in rows)
     out = [
         "| class | runs | bound | EKF / bound | full information / bound | its in95 "
-        "| navd / bound | navd's in95 |",
-        "|---|---|---|---|---|---|---|---|",
+        "| navd / bound | navd's in95 |" + (" tidal runs | their EKF / bound | "
+        "with the tide's form / bound |" if tides else ""),
+        "|---|---|---|---|---|---|---|---|" + ("---|---|---|" if tides else ""),
     ]
     for name, rs in groups.items():
-        out.append(
+        line = (
             f"| {name} | {len(rs)} | {statistics.fmean(r.bound_m for r in rs):.1f} | "
             f"{_ratio(rs, lambda r: r.ekf_m):.2f} | {_interval(rs, lambda r: r.full_m)} | "
             f"{statistics.fmean(r.full_in95 for r in rs):.2f} | "
             f"{_interval(rs, lambda r: r.navd_m)} | "
             f"{statistics.fmean(r.navd_in95 for r in rs):.2f} |"
         )
+        tidal = [r for r in rs if math.isfinite(r.tide_m)]
+        if tides and tidal:
+            line += (
+                f" {len(tidal)} | {_ratio(tidal, lambda r: r.ekf_m):.2f} | "
+                f"{_interval(tidal, lambda r: r.tide_m)} |"
+            )
+        elif tides:
+            line += " 0 | - | - |"
+        out.append(line)
     return "\n".join(out)
 
 
@@ -578,12 +654,30 @@ def main() -> int:
         help="each mission's current drawn from the bound's own random walk instead of the "
         "truth's (a tidal stream turns smoothly, which such a walk seldom does)",
     )
+    tide = p.add_mutually_exclusive_group()
+    tide.add_argument(
+        "--tide",
+        type=float,
+        metavar="FACTOR",
+        help="fly, on each mission with a tide, an EKF that knows the tide's form too: each "
+        "constituent's prior std FACTOR times the mission's amplitude over sqrt 2",
+    )
+    tide.add_argument(
+        "--tide-std",
+        type=float,
+        metavar="MPS",
+        help="the same, each constituent's prior std MPS (a site's strongest tide)",
+    )
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args()
     seeds = list(range(1, args.missions + 1))
     if args.only:
         seeds = [s for s in seeds if draw(s).cls == args.only]
-    runs = [(s, j, args.walk_current) for s in seeds for j in range(args.draws)]
+    runs = [
+        (s, j, args.walk_current, args.tide, args.tide_std)
+        for s in seeds
+        for j in range(args.draws)
+    ]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as ex:
         rows = [r for r in ex.map(run_one, *zip(*runs, strict=True)) if r is not None]
@@ -592,10 +686,13 @@ def main() -> int:
         print(
             f"seed {r.seed:4d} {r.cls:14s} {r.kind:7s} bound {r.bound_m:7.1f} "
             f"ekf {r.ekf_m:7.1f} full {r.full_m:7.1f} ({r.full_in95:.2f}) "
-            f"navd {r.navd_m:7.1f} ({r.navd_in95:.2f}) {r.seconds:.0f} s"
+            f"navd {r.navd_m:7.1f} ({r.navd_in95:.2f}) tide {r.tide_m:7.1f} {r.seconds:.0f} s"
         )
-    flags = (f" --only {args.only}" if args.only else "") + (
-        " --walk-current" if args.walk_current else ""
+    flags = (
+        (f" --only {args.only}" if args.only else "")
+        + (" --walk-current" if args.walk_current else "")
+        + (f" --tide {args.tide:g}" if args.tide is not None else "")
+        + (f" --tide-std {args.tide_std:g}" if args.tide_std is not None else "")
     )
     body = (
         f"`python -m bench.attainable --missions {args.missions}{flags} --draws {args.draws}`\n\n"
@@ -606,8 +703,15 @@ def main() -> int:
         "each instant; *navd*: navd's default mode configured with the bound's model "
         "(`--matched-noise`), on the same measurements. RMS over the runs over the bound's; "
         "in brackets its 90 % bootstrap interval over the runs; *in95*: how often the truth lay "
-        "in the estimator's own 95 % ellipse.\n\n"
-        f"{table(rows)}\n\nRan in {took:.1f} min on {args.jobs} worker processes."
+        "in the estimator's own 95 % ellipse."
+        + (
+            " *with the tide's form*: the EKF with the tide's four constituents as states "
+            "(`Tide` in bench/attainable.py), on the runs whose mission has a tide, beside the "
+            "EKF on the same runs."
+            if args.tide is not None or args.tide_std is not None
+            else ""
+        )
+        + f"\n\n{table(rows)}\n\nRan in {took:.1f} min on {args.jobs} worker processes."
     )
     print(body)
     if args.write:

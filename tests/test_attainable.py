@@ -10,7 +10,7 @@ import statistics
 import numpy as np
 import pytest
 
-from bench.attainable import Generated, Model, ekf, generate, navd_core, smooth
+from bench.attainable import Generated, Model, Tide, ekf, generate, navd_core, smooth
 from bench.robustness import draw
 from navd.hil.bound import matched_config, range_variance
 from navd.hil.scenario import scenario_from_dict
@@ -91,3 +91,45 @@ def test_navd_on_the_bound_s_model_of_a_net_is_near_the_bound_and_honest() -> No
         for d in [ne - g.truth_x[nd.k, 0:2]]
     ]
     assert statistics.fmean(inside) >= 0.9
+
+
+def test_the_tide_s_form_moves_the_vehicle_by_its_integral() -> None:
+    """The constituent states carry the vehicle by the integral of a cos(wt) + b sin(wt), and
+    their Jacobian columns are those integrals; with none of the bound's walk left, the mean
+    current no longer walks."""
+    _, _, g, _ = _mission(_BEACON)
+    tide = Tide(0.3, omega=2.0 * math.pi / 40000.0, walk_share=0.0)
+    model = Model(g, 1.0, tide)
+    c = model.tide_col
+    assert model.n == g.P0.shape[0] + 4
+    assert np.allclose(model.P0[c:, c:], 0.09 * np.eye(4))
+    x = np.zeros(model.n)
+    x[c : c + 4] = 0.2, -0.1, 0.05, 0.3  # a north, a east, b north, b east
+    ka, kb = 100, 1100
+    moved, F, Q = model.transition(ka, kb, x)
+    still, _, _ = model.transition(ka, kb, np.zeros(model.n))
+    # by the midpoint rule, not the closed form the model uses
+    h = (kb - ka) * g.dt / 200000
+    t = ka * g.dt + h * (np.arange(200000) + 0.5)
+    cos_int = float(np.sum(np.cos(tide.omega * t)) * h)
+    sin_int = float(np.sum(np.sin(tide.omega * t)) * h)
+    want = (0.2 * cos_int + 0.05 * sin_int, -0.1 * cos_int + 0.3 * sin_int)
+    assert moved[0:2] - still[0:2] == pytest.approx(want, rel=1e-6)
+    assert F[0, c] == pytest.approx(cos_int, rel=1e-6)
+    assert F[1, c + 3] == pytest.approx(sin_int, rel=1e-6)
+    assert np.all(Q[2:4, 2:4] == 0.0)
+    assert np.all(Q[c:, c:] == 0.0)
+
+
+def test_a_crew_s_tide_is_sized_from_the_mission_s_own() -> None:
+    m, _, _, _ = _mission(_BEACON)
+    assert Tide.for_mission(m, 1.0, None) is None  # this mission's water has no tide
+    tidal = next(s for s in range(1, 200) if draw(s).cls == "tidal-turning")
+    mt = simulate(scenario_from_dict(draw(tidal).scenario), tidal)
+    amp = mt.scenario.current.tidal_amplitude_mps
+    one = Tide.for_mission(mt, 1.0, None)
+    assert one is not None and one.std_mps == pytest.approx(amp / math.sqrt(2.0))
+    wide = Tide.for_mission(mt, 1.5, None)
+    assert wide is not None and wide.std_mps == pytest.approx(1.5 * one.std_mps)
+    site = Tide.for_mission(mt, None, 1.41)
+    assert site is not None and site.std_mps == 1.41

@@ -56,6 +56,9 @@ def test_a_mission_s_parts_are_measured_every_submerged_second() -> None:
     assert all(0.0 <= w <= 1.0 for w in r.weights)
     pub = np.array(r.parts["published"])
     assert np.isfinite(pub).all()
+    # the blends run from the followed belief's ellipse to the published one
+    assert r.blends[0.0] == pytest.approx(r.parts["followed"], rel=1e-9)
+    assert r.blends[1.0] == pytest.approx(r.parts["published"], rel=1e-9)
     # the mixture holds the wider uncalibrated belief too, so the error lies nearer its
     # centre than in the followed belief's ellipse alone
     assert np.median(r.parts["+ other belief"]) <= np.median(r.parts["followed"])

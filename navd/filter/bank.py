@@ -115,7 +115,7 @@ _PRIOR = 0.5  # before any range, neither belief is the likelier
 # (the principal lunar semidiurnal period): its published covariance adds what such a
 # stream would beyond the filter's own walk (navd/filter/consider.py); its mean, gates
 # and weights keep the config's walk.
-_M2_PERIOD_S = 12.42 * 3600.0
+M2_PERIOD_S = 12.42 * 3600.0
 _CURRENT_LEARNT_S = 600.0
 # The config's priors are refuted past this distance of the config filter's calibration
 # from them (chi-square, 4 degrees of freedom: current north and east, bias, scale).
@@ -143,7 +143,7 @@ def tidal_walk(max_current_mps: float) -> float:
     the site's strongest: its fastest change, amplitude times 2 pi / T, over the time
     ranges from one beacon take to determine a current (docs/replay.md, "A current that
     changes")."""
-    return max_current_mps * 2.0 * math.pi / _M2_PERIOD_S * math.sqrt(_CURRENT_LEARNT_S)
+    return max_current_mps * 2.0 * math.pi / M2_PERIOD_S * math.sqrt(_CURRENT_LEARNT_S)
 
 
 def switched(w: float) -> float:
