@@ -20,6 +20,9 @@ no help from navd and no model mismatch:
 * navd's default mode (its bank of two range EKFs with their windows, gates and range
   biases, navd/filter/bank.py) is given the same measurements, configured with the bound's
   model as ``--matched-noise`` configures it (navd/hil/bound.py ``matched_config``);
+* with ``--tide`` or ``--tide-std``, an EKF that carries the tide's form as well (``Tide``:
+  its semidiurnal constituents as states, the issue's other way to model a current that
+  changes) is flown on the missions whose water has a tide, beside the EKF with the walk;
 * each is scored, every ``EVAL_S`` seconds of submerged time, as RMS position error over
   the bound's RMS at the same instants.
 
@@ -566,8 +569,8 @@ def run_one(
         dn = ne - truth
         e_ekf.append(float(de @ de))
         if tidal is not None:
-            dt_ = tidal[i][0:2] - truth
-            e_tide.append(float(dt_ @ dt_))
+            dw = tidal[i][0:2] - truth
+            e_tide.append(float(dw @ dw))
         e_full.append(float(df @ df))
         e_navd.append(float(dn @ dn))
         in_full.append(_inside95(df, P[0:2, 0:2]))

@@ -27,6 +27,10 @@ narrower; and, while integrity said ``ok``, the fraction of that time the truth 
 inside each one's 99 % ellipse.  *weight* is the mean weight of the belief that is not
 followed.  Each figure pools the sampled seconds of the class's missions, so a long mission
 counts for more (bench/robustness.py's class figures are means over missions).
+
+A second table blends the two: the followed belief's covariance plus a share of the
+hedges (published less followed), so that one can read how much of them each class's
+figures need (bench/ellipse_scan.py asks it of both targets at once).
 """
 
 from __future__ import annotations
@@ -194,13 +198,22 @@ def table(runs: Sequence[Nees]) -> str:
     return "\n".join(lines)
 
 
-def _blend_cell(runs: Sequence[Nees], a: float) -> str:
-    v = np.array([x for r in runs for x in r.blends[a]])
+def blend_figures(runs: Sequence[Nees], a: float, s: float = 1.0) -> tuple[float, float]:
+    """In95, and ok in99, of the followed ellipse plus ``a`` of the hedges, its standard
+    deviations scaled by ``s``; nan where nothing was sampled (or never ``ok``)."""
+    v = np.array([x for r in runs for x in r.blends[a]]) / (s * s)
     ok = np.array([x for r in runs for x in r.ok], dtype=bool)
     if not len(v):
+        return math.nan, math.nan
+    inside = float(np.mean(v <= CHI2_95))
+    return inside, float(np.mean(v[ok] <= CHI2_99)) if ok.any() else math.nan
+
+
+def _blend_cell(runs: Sequence[Nees], a: float) -> str:
+    inside, ok_inside = blend_figures(runs, a)
+    if math.isnan(inside):
         return "-"
-    ok_inside = f"{np.mean(v[ok] <= CHI2_99):.3f}" if ok.any() else "-"
-    return f"{np.mean(v <= CHI2_95):.3f} / {ok_inside}"
+    return f"{inside:.3f} / " + ("-" if math.isnan(ok_inside) else f"{ok_inside:.3f}")
 
 
 def blends(runs: Sequence[Nees]) -> str:

@@ -26,26 +26,15 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
 from bench.common import write_section
-from bench.ellipse_parts import BLENDS, CHI2_95, CHI2_99, GEOMETRIES, Nees, run_one
+from bench.ellipse_parts import BLENDS, GEOMETRIES, Nees, run_one
+from bench.ellipse_parts import blend_figures as figures
 from bench.robustness import CLASSES, selected
 from navd.analysis.jobs import default_jobs, run_all
 
 SCALES = tuple(round(0.5 + 0.1 * i, 1) for i in range(9))  # 0.5 .. 1.3
 IN95 = (0.90, 0.99)
 OK99 = 0.97
-
-
-def figures(runs: Sequence[Nees], a: float, s: float) -> tuple[float, float]:
-    """In95, and ok in99, of the followed ellipse plus ``a`` of the hedges, scaled by ``s``."""
-    v = np.array([x for r in runs for x in r.blends[a]]) / (s * s)
-    ok = np.array([x for r in runs for x in r.ok], dtype=bool)
-    if not len(v):
-        return float("nan"), float("nan")
-    inside = float(np.mean(v <= CHI2_95))
-    return inside, float(np.mean(v[ok] <= CHI2_99)) if ok.any() else float("nan")
 
 
 def meets(drawn: Sequence[Nees], wrong: Sequence[Nees], a: float, s: float) -> bool:

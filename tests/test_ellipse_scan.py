@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.ellipse_parts import BLENDS, Nees
-from bench.ellipse_scan import _scales, feasible, figures, meets, table
+from bench.ellipse_parts import BLENDS, Nees, blend_figures
+from bench.ellipse_scan import _scales, feasible, meets, table
 
 
 def _runs(group: str, wider: float, n: int = 20000, seed: int = 0) -> list[Nees]:
@@ -21,11 +21,11 @@ def _runs(group: str, wider: float, n: int = 20000, seed: int = 0) -> list[Nees]
 
 
 def test_a_right_ellipse_scores_its_own_probabilities() -> None:
-    inside, ok_inside = figures(_runs("base", 1.0), 1.0, 1.0)
+    inside, ok_inside = blend_figures(_runs("base", 1.0), 1.0, 1.0)
     assert abs(inside - 0.95) < 0.005
     assert abs(ok_inside - 0.99) < 0.003
     # half the width holds the truth where chi-square(2) <= 5.99 / 4: 1 - exp(-0.75)
-    inside, _ = figures(_runs("base", 1.0), 1.0, 0.5)
+    inside, _ = blend_figures(_runs("base", 1.0), 1.0, 0.5)
     assert abs(inside - (1.0 - np.exp(-0.75))) < 0.01
 
 
