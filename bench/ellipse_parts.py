@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import mode_config, write_section
+from bench.common import mode_config, report
 from bench.robustness import CLASSES, selected, variant, write_flown
 from navd import geodesy
 from navd.analysis.jobs import default_jobs, run_all
@@ -281,14 +281,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         + ("".join(f"{f}\n" for f in failed) + "\n" if failed else "")
         + f"Ran in {took:.1f} min on {args.jobs} worker processes."
     )
-    print(body)
-    if args.write:
-        write_section(
-            Path(args.write),
-            "bench-ellipse-parts",
-            "The published ellipse by its parts (`make bench-ellipse-parts`)",
-            body,
-        )
+    report(body, args.write, "bench-ellipse-parts", "The published ellipse by its parts")
 
 
 if __name__ == "__main__":

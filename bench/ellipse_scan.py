@@ -24,9 +24,8 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Sequence
-from pathlib import Path
 
-from bench.common import write_section
+from bench.common import report
 from bench.ellipse_parts import BLENDS, GEOMETRIES, Nees, run_one
 from bench.ellipse_parts import blend_figures as figures
 from bench.robustness import CLASSES, selected
@@ -122,14 +121,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         + ("".join(f"{f}\n" for f in failed) + "\n" if failed else "")
         + f"Ran in {took:.1f} min on {args.jobs} worker processes."
     )
-    print(body)
-    if args.write:
-        write_section(
-            Path(args.write),
-            "bench-ellipse-scan",
-            "Whether one width of the ellipse meets both targets (`make bench-ellipse-scan`)",
-            body,
-        )
+    title = "Whether one width of the ellipse meets both targets"
+    report(body, args.write, "bench-ellipse-scan", title)
 
 
 if __name__ == "__main__":
