@@ -669,7 +669,8 @@ def main() -> int:
         "--tide-std",
         type=float,
         metavar="MPS",
-        help="the same, each constituent's prior std MPS (a site's strongest tide)",
+        help="the same, each constituent's prior std MPS whatever the mission (a site's "
+        "strongest tide over sqrt 2)",
     )
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args()
