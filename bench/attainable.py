@@ -20,9 +20,10 @@ no help from navd and no model mismatch:
 * navd's default mode (its bank of two range EKFs with their windows, gates and range
   biases, navd/filter/bank.py) is given the same measurements, configured with the bound's
   model as ``--matched-noise`` configures it (navd/hil/bound.py ``matched_config``);
-* with ``--tide`` or ``--tide-std``, an EKF that carries the tide's form as well (``Tide``:
-  its semidiurnal constituents as states, the issue's other way to model a current that
-  changes) is flown on the missions whose water has a tide, beside the EKF with the walk;
+* with ``--tide`` or ``--tide-std``, an EKF and a full-information estimate that carry the
+  tide's form as well (``Tide``: its semidiurnal constituents as states, the issue's other
+  way to model a current that changes) are flown on the missions whose water has a tide,
+  beside the two with the walk;
 * each is scored, every ``EVAL_S`` seconds of submerged time, as RMS position error over
   the bound's RMS at the same instants.
 
@@ -53,6 +54,7 @@ from navd.filter.bank import M2_PERIOD_S
 from navd.filter.common import RangeMeas
 from navd.filter.navparts import make_filter
 from navd.hil.bound import (
+    FLOOR_CURRENT_MPS,
     SOUND_STATE,
     STEP_S,
     SUBMERGED_DEPTH_M,
@@ -73,7 +75,6 @@ from navd.settings import Config, config_from_dict, deep_merge
 
 EVAL_S = 60.0  # one evaluation a minute of submerged time
 _ITERATIONS = 3  # Gauss-Newton passes per evaluation (warm started from the last)
-_TIDE_FLOOR_MPS = 0.02  # the least constituent prior: no prediction is better
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ class Tide:
     the water runs at the mean current plus ``a cos(wt) + b sin(wt)`` (``a``, ``b`` north
     and east, four states, constant, each with prior std ``std_mps``) at the principal
     lunar semidiurnal frequency.  The mean current keeps ``walk_share`` of the bound's
-    walk: the simulator's water changes only by its tide, so by default none."""
+    walk: the Monte Carlo's water changes only by its tide, so by default none."""
 
     std_mps: float
     omega: float = 2.0 * math.pi / M2_PERIOD_S
@@ -98,7 +99,7 @@ class Tide:
             return None
         if std_mps is None:
             std_mps = (factor or 1.0) * amp / math.sqrt(2.0)
-        return Tide(max(_TIDE_FLOOR_MPS, std_mps))
+        return Tide(max(FLOOR_CURRENT_MPS, std_mps))
 
 
 def _rot(b: float) -> np.ndarray:
@@ -542,8 +543,8 @@ def run_one(
 ) -> Scored | None:
     """Mission ``seed`` of bench/robustness.py, with the ``draw_no``-th draw of the bound's
     noise along its truth (with ``walk_current``, its current drawn from the bound's walk);
-    with ``tide_factor`` or ``tide_std``, an EKF that knows the tide's form as well
-    (:meth:`Tide.for_mission`)."""
+    with ``tide_factor`` or ``tide_std``, an EKF and a full-information estimate that know
+    the tide's form as well (:meth:`Tide.for_mission`)."""
     t0 = time.perf_counter()
     dr = draw(seed)
     m = simulate(scenario_from_dict(dr.scenario), seed)
@@ -557,8 +558,8 @@ def run_one(
     if tide_factor is not None or tide_std is not None:
         tide = Tide.for_mission(m, tide_factor, tide_std)
     tide_model = Model(g, model.r_var, tide) if tide else None
-    tidal = ekf(tide_model) if tide_model else None
-    tide_traj = list(tidal) if tidal else []
+    tidal = ekf(tide_model) if tide_model else []
+    tide_traj = list(tidal)
     e_tide: list[float] = []
     e_tide_full: list[float] = []
     matched = config_from_dict(deep_merge(mission_config(m), matched_config(m, cfg)))
@@ -579,7 +580,7 @@ def run_one(
         ne, cov = next(navd)
         dn = ne - truth
         e_ekf.append(float(de @ de))
-        if tide_model is not None and tidal is not None:
+        if tide_model is not None:
             dw = tidal[i][0:2] - truth
             e_tide.append(float(dw @ dw))
             dw = _solve_to(tide_model, tide_traj, i)[0][0:2] - truth
@@ -678,7 +679,8 @@ def main() -> int:
         "--tide",
         type=float,
         metavar="FACTOR",
-        help="fly, on each mission with a tide, an EKF that knows the tide's form too: each "
+        help="fly, on each mission with a tide, an EKF and full information that know the "
+        "tide's form too: each "
         "constituent's prior std FACTOR times the mission's amplitude over sqrt 2",
     )
     tide.add_argument(

@@ -159,6 +159,20 @@ def run_one(seed: int, matched: bool, no_outliers: bool, wrong: bool, wide: bool
     return out
 
 
+def groups(runs: Sequence[Nees]) -> list[tuple[str, list[Nees]]]:
+    """The runs by class (a net of the base class is its geometry's row, not base's), then
+    all of them; runs that failed are left out."""
+    good = [r for r in runs if not r.error]
+    out = [(g, [r for r in good if r.group == g]) for g in [*CLASSES, *GEOMETRIES]]
+    return [(g, mine) for g, mine in out if mine] + [("**all**", good)]
+
+
+def _figures(v: np.ndarray, ok: np.ndarray) -> tuple[float, float]:
+    """In the 95 % ellipse, and while ``ok`` in the 99 % ellipse, of NEES ``v``."""
+    inside = float(np.mean(v <= CHI2_95))
+    return inside, float(np.mean(v[ok] <= CHI2_99)) if ok.any() else math.nan
+
+
 def _row(name: str, runs: Sequence[Nees]) -> str:
     cells = [name, str(len(runs))]
     w = [x for r in runs for x in r.weights]
@@ -172,9 +186,10 @@ def _row(name: str, runs: Sequence[Nees]) -> str:
             scale.append("-")
             ok_inside.append("-")
             continue
-        inside.append(f"{np.mean(v <= CHI2_95):.3f}")
+        v_in, v_ok = _figures(v, ok)
+        inside.append(f"{v_in:.3f}")
         scale.append(f"{math.sqrt(float(np.quantile(v, 0.95)) / CHI2_95):.2f}")
-        ok_inside.append(f"{np.mean(v[ok] <= CHI2_99):.3f}" if ok.any() else "-")
+        ok_inside.append("-" if math.isnan(v_ok) else f"{v_ok:.3f}")
     return "| " + " | ".join(cells + inside + scale + ok_inside) + " |"
 
 
@@ -189,12 +204,7 @@ def table(runs: Sequence[Nees]) -> str:
         + " |"
     )
     lines = [head, "|" + "---|" * (3 + 3 * len(PARTS))]
-    # a net of the base class is its geometry's row, not base's
-    for g in [*CLASSES, *GEOMETRIES]:
-        mine = [r for r in runs if r.group == g and not r.error]
-        if mine:
-            lines.append(_row(g, mine))
-    lines.append(_row("**all**", [r for r in runs if not r.error]))
+    lines += [_row(g, mine) for g, mine in groups(runs)]
     return "\n".join(lines)
 
 
@@ -205,8 +215,7 @@ def blend_figures(runs: Sequence[Nees], a: float, s: float = 1.0) -> tuple[float
     ok = np.array([x for r in runs for x in r.ok], dtype=bool)
     if not len(v):
         return math.nan, math.nan
-    inside = float(np.mean(v <= CHI2_95))
-    return inside, float(np.mean(v[ok] <= CHI2_99)) if ok.any() else math.nan
+    return _figures(v, ok)
 
 
 def _blend_cell(runs: Sequence[Nees], a: float) -> str:
@@ -223,10 +232,8 @@ def blends(runs: Sequence[Nees]) -> str:
         "| class | " + " | ".join(f"hedges x {a:g}" for a in BLENDS) + " |",
         "|" + "---|" * (1 + len(BLENDS)),
     ]
-    for g in [*CLASSES, *GEOMETRIES, "**all**"]:
-        mine = [r for r in runs if not r.error and (g == "**all**" or r.group == g)]
-        if mine:
-            lines.append(f"| {g} | " + " | ".join(_blend_cell(mine, a) for a in BLENDS) + " |")
+    for g, mine in groups(runs):
+        lines.append(f"| {g} | " + " | ".join(_blend_cell(mine, a) for a in BLENDS) + " |")
     return "\n".join(lines)
 
 

@@ -26,7 +26,7 @@ import time
 from collections.abc import Sequence
 
 from bench.common import report
-from bench.ellipse_parts import BLENDS, GEOMETRIES, Nees, run_one
+from bench.ellipse_parts import BLENDS, Nees, groups, run_one
 from bench.ellipse_parts import blend_figures as figures
 from bench.robustness import CLASSES, selected
 from navd.analysis.jobs import default_jobs, run_all
@@ -69,10 +69,10 @@ def table(drawn: Sequence[Nees], wrong: Sequence[Nees]) -> str:
         "|" + "---|" * (4 + len(BLENDS)),
     ]
     every: set[tuple[float, float]] | None = None
-    for g in [*CLASSES, *GEOMETRIES]:
-        d = [r for r in drawn if r.group == g and not r.error]
-        w = [r for r in wrong if r.group == g and not r.error]
-        if not d or not w:
+    wrong_by = dict(groups(wrong))
+    for g, d in groups(drawn):
+        w = wrong_by.get(g, [])
+        if g == "**all**" or not w:
             continue
         ok = feasible(d, w)
         pairs = {(a, s) for a, ss in ok.items() for s in ss}
@@ -90,10 +90,36 @@ def table(drawn: Sequence[Nees], wrong: Sequence[Nees]) -> str:
     return "\n".join(lines)
 
 
+def at(drawn: Sequence[Nees], wrong: Sequence[Nees], a: float, s: float) -> str:
+    """The four figures of one width, class by class."""
+    lines = [
+        f"At hedges x {a:g}, scale {s:g}:\n",
+        "| class | as drawn: in95 / ok in99 | priors too small: in95 / ok in99 |",
+        "|---|---|---|",
+    ]
+    wrong_by = dict(groups(wrong))
+    for g, d in groups(drawn):
+        cells = [g]
+        for runs in (d, wrong_by.get(g, [])):
+            inside, ok_inside = figures(runs, a, s)
+            cells.append(f"{inside:.3f} / {ok_inside:.3f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--missions", type=int, default=120, help="seeds 1..N")
     p.add_argument("--only", choices=list(CLASSES), help="of those, this class's")
+    p.add_argument(
+        "--at",
+        nargs=2,
+        type=float,
+        action="append",
+        default=[],
+        metavar=("SHARE", "SCALE"),
+        help="also print the four figures of this width by class (repeatable)",
+    )
     p.add_argument("--jobs", type=int, default=default_jobs())
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args(argv)
@@ -113,11 +139,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         for s, r in zip(seeds, runs, strict=True)
         if r.error
     ]
-    command = f"python -m bench.ellipse_scan --missions {args.missions}" + (
-        f" --only {args.only}" if args.only else ""
+    command = (
+        f"python -m bench.ellipse_scan --missions {args.missions}"
+        + (f" --only {args.only}" if args.only else "")
+        + "".join(f" --at {a:g} {s:g}" for a, s in args.at)
     )
     body = (
         f"`{command}`\n\n{table(flown[False], flown[True])}\n\n"
+        + "".join(f"{at(flown[False], flown[True], a, s)}\n\n" for a, s in args.at)
         + ("".join(f"{f}\n" for f in failed) + "\n" if failed else "")
         + f"Ran in {took:.1f} min on {args.jobs} worker processes."
     )

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.ellipse_parts import BLENDS, Nees, blend_figures
-from bench.ellipse_scan import _scales, feasible, meets, table
+from bench.ellipse_scan import _scales, at, feasible, meets, table
 
 
 def _runs(group: str, wider: float, n: int = 20000, seed: int = 0) -> list[Nees]:
@@ -55,3 +55,17 @@ def test_scales_are_written_as_runs_of_the_grid() -> None:
     assert _scales([0.8, 0.9, 1.0]) == "0.8-1.0"
     assert _scales([0.5, 0.7, 0.8]) == "0.5, 0.7-0.8"
     assert _scales([]) == ""
+
+
+def test_one_width_s_figures_are_those_of_each_variant_by_class() -> None:
+    drawn = _runs("base", 2.0) + _runs("lbl-3", 1.0, seed=2)
+    wrong = _runs("base", 1.0, seed=3) + _runs("lbl-3", 1.0, seed=4)
+    lines = at(drawn, wrong, 1.0, 0.5).splitlines()
+    rows = {line.split(" | ")[0].strip("| "): line for line in lines if line.startswith("| ")}
+    for g in ("base", "lbl-3"):
+        d = blend_figures([r for r in drawn if r.group == g], 1.0, 0.5)
+        w = blend_figures([r for r in wrong if r.group == g], 1.0, 0.5)
+        assert rows[g] == f"| {g} | {d[0]:.3f} / {d[1]:.3f} | {w[0]:.3f} / {w[1]:.3f} |"
+    # twice too wide as drawn, base is right at half its width
+    assert abs(blend_figures(drawn[:1], 1.0, 0.5)[0] - 0.95) < 0.005
+    assert rows["**all**"].startswith("| **all** | ")

@@ -47,7 +47,7 @@ CURRENT_MEMORY_S = 600.0
 STEP_S = 1.0
 SUBMERGED_DEPTH_M = 0.3
 # the least prior std of each calibration state: what no crew knows better
-_FLOOR_CURRENT_MPS = 0.02
+FLOOR_CURRENT_MPS = 0.02
 _FLOOR_BIAS_DEG = 0.5
 _FLOOR_SCALE = 0.01
 _FLOOR_SOUND = 0.001  # 1.5 m/s: a sound speed from a CTD cast
@@ -89,7 +89,7 @@ def calibration_prior(m: Mission, cfg: Config, col: dict[str, int]) -> np.ndarra
     n_states = SOUND_STATE + 1 + 2 * len(col)
     P = np.zeros((n_states, n_states))
     P[0, 0] = P[1, 1] = 1e8
-    P[2, 2] = P[3, 3] = max(_FLOOR_CURRENT_MPS, c_true) ** 2
+    P[2, 2] = P[3, 3] = max(FLOOR_CURRENT_MPS, c_true) ** 2
     P[4, 4] = max(math.radians(_FLOOR_BIAS_DEG), bias_true) ** 2
     P[5, 5] = max(_FLOOR_SCALE, scale_true) ** 2
     P[SOUND_STATE, SOUND_STATE] = max(_FLOOR_SOUND, abs(sound_error(m, cfg))) ** 2
