@@ -90,16 +90,24 @@ class Tide:
     walk_share: float = 0.0
 
     @staticmethod
-    def for_mission(m: Mission, factor: float | None, std_mps: float | None) -> Tide | None:
+    def for_mission(
+        m: Mission,
+        factor: float | None,
+        std_mps: float | None,
+        everywhere: bool = False,
+        walk_share: float = 0.0,
+    ) -> Tide | None:
         """The tide a crew would configure for ``m``: each constituent's std ``factor`` times
         the mission's own amplitude over sqrt 2 (a tidal current prediction that far off),
-        or ``std_mps``; None where the mission has no tide."""
+        or ``std_mps``; None where the mission has no tide, unless ``everywhere`` (with
+        ``std_mps``: a prior for water whose tide nobody predicted, which may have none).
+        The mean current keeps ``walk_share`` of the bound's walk."""
         amp = m.scenario.current.tidal_amplitude_mps
-        if amp <= 0.0:
+        if amp <= 0.0 and not (everywhere and std_mps is not None):
             return None
         if std_mps is None:
             std_mps = (factor or 1.0) * amp / math.sqrt(2.0)
-        return Tide(max(FLOOR_CURRENT_MPS, std_mps))
+        return Tide(max(FLOOR_CURRENT_MPS, std_mps), walk_share=walk_share)
 
 
 def _rot(b: float) -> np.ndarray:
@@ -540,11 +548,14 @@ def run_one(
     walk_current: bool = False,
     tide_factor: float | None = None,
     tide_std: float | None = None,
+    tide_everywhere: bool = False,
+    tide_walk: float = 0.0,
 ) -> Scored | None:
     """Mission ``seed`` of bench/robustness.py, with the ``draw_no``-th draw of the bound's
     noise along its truth (with ``walk_current``, its current drawn from the bound's walk);
     with ``tide_factor`` or ``tide_std``, an EKF and a full-information estimate that know
-    the tide's form as well (:meth:`Tide.for_mission`)."""
+    the tide's form as well (:meth:`Tide.for_mission`, with ``tide_everywhere`` and
+    ``tide_walk``)."""
     t0 = time.perf_counter()
     dr = draw(seed)
     m = simulate(scenario_from_dict(dr.scenario), seed)
@@ -556,7 +567,7 @@ def run_one(
     lin = ekf(model)
     tide = None
     if tide_factor is not None or tide_std is not None:
-        tide = Tide.for_mission(m, tide_factor, tide_std)
+        tide = Tide.for_mission(m, tide_factor, tide_std, tide_everywhere, tide_walk)
     tide_model = Model(g, model.r_var, tide) if tide else None
     tidal = ekf(tide_model) if tide_model else []
     tide_traj = list(tidal)
@@ -634,7 +645,7 @@ def table(rows: Sequence[Scored]) -> str:
     tides = any(math.isfinite(r.tide_m) for r in rows)
     out = [
         "| class | runs | bound | EKF / bound | full information / bound | its in95 "
-        "| navd / bound | navd's in95 |" + (" tidal runs | their EKF / bound | "
+        "| navd / bound | navd's in95 |" + (" runs with it | their EKF / bound | "
         "EKF with the tide's form / bound | full information with it / bound |"
         if tides else ""),
         "|---|---|---|---|---|---|---|---|" + ("---|---|---|---|" if tides else ""),
@@ -690,13 +701,29 @@ def main() -> int:
         help="the same, each constituent's prior std MPS whatever the mission (a site's "
         "strongest tide over sqrt 2)",
     )
+    p.add_argument(
+        "--tide-everywhere",
+        action="store_true",
+        help="with --tide-std, fly the tide's form on every mission, those whose water has "
+        "no tide too (a prior for water whose tide nobody predicted: what it costs there)",
+    )
+    p.add_argument(
+        "--tide-walk",
+        type=float,
+        default=0.0,
+        metavar="SHARE",
+        help="with the tide's form, the mean current keeps SHARE of the bound's walk "
+        "(default 0: the Monte Carlo's water changes only by its tide)",
+    )
     p.add_argument("--write", help="BENCHMARKS.md to update")
     args = p.parse_args()
+    if args.tide_everywhere and args.tide_std is None:
+        p.error("--tide-everywhere needs --tide-std (a mission without a tide has no amplitude)")
     seeds = list(range(1, args.missions + 1))
     if args.only:
         seeds = [s for s in seeds if draw(s).cls == args.only]
     runs = [
-        (s, j, args.walk_current, args.tide, args.tide_std)
+        (s, j, args.walk_current, args.tide, args.tide_std, args.tide_everywhere, args.tide_walk)
         for s in seeds
         for j in range(args.draws)
     ]
@@ -716,6 +743,8 @@ def main() -> int:
         + (" --walk-current" if args.walk_current else "")
         + (f" --tide {args.tide:g}" if args.tide is not None else "")
         + (f" --tide-std {args.tide_std:g}" if args.tide_std is not None else "")
+        + (" --tide-everywhere" if args.tide_everywhere else "")
+        + (f" --tide-walk {args.tide_walk:g}" if args.tide_walk else "")
     )
     body = (
         f"`python -m bench.attainable --missions {args.missions}{flags} --draws {args.draws}`\n\n"
@@ -730,7 +759,13 @@ def main() -> int:
         + (
             " *with the tide's form*: the EKF, and the full-information estimate, with the "
             "tide's four constituents as states (`Tide` in bench/attainable.py), on the runs "
-            "whose mission has a tide, beside the EKF with the walk on the same runs."
+            + ("of every mission" if args.tide_everywhere else "whose mission has a tide")
+            + ", beside the EKF with the walk on the same runs"
+            + (
+                f"; the mean current keeps {args.tide_walk:g} of the walk."
+                if args.tide_walk
+                else "."
+            )
             if args.tide is not None or args.tide_std is not None
             else ""
         )

@@ -23,6 +23,7 @@ thesis mode's final error) or an RMS current error above 0.5 m/s.
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import json
 import math
 import random
@@ -45,6 +46,7 @@ from navd.hil.sim_cli import mission_config, write_mission
 from navd.hil.world import Mission, simulate
 from navd.schema import Output
 from navd.settings import Config, NoiseConfig, config_from_dict
+from navd.utc import utc_seconds
 
 DIVERGED_FINAL_M = 100.0
 DIVERGED_CURRENT_MPS = 0.5
@@ -318,6 +320,49 @@ def wide_ranges(dr: Draw) -> Draw:
     return replace(dr, scenario={**dr.scenario, "acoustics": acoustics})
 
 
+# How far a crew's tidal prediction may be off: a prediction for a station a few
+# kilometres away (NOAA's tidal current predictions) gives speeds to about a fifth, the
+# times of maximum flood to about half an hour, the flood's direction to about 10 degrees.
+TIDE_SPEED_ERR = 0.2
+TIDE_TIME_ERR_S = 1800.0
+TIDE_DIRECTION_ERR_DEG = 10.0
+
+
+def tide_prediction(dr: Draw) -> Draw:
+    """The same mission with its crew given a prediction of its tidal stream
+    (``navigation.tide``), off in speed, time and direction by up to ``TIDE_*_ERR`` (from a
+    generator of its own, so that every other draw stays as it was); a mission whose water
+    has no tide as drawn."""
+    c = dr.scenario["current"]
+    amp = float(c.get("tidal_amplitude_mps", 0.0))
+    if amp <= 0.0:
+        return dr
+    rng = random.Random(f"tide-prediction-{dr.seed}")
+    sc = scenario_from_dict(dr.scenario)
+    period = sc.current.tidal_period_s
+    # the simulator's stream is amp sin(2 pi t / T + phase) along toward_deg
+    # (navd/hil/world.py): the flood is greatest where the sine is 1
+    t_flood = (0.5 * math.pi - math.radians(sc.current.tidal_phase_deg)) * period / (2 * math.pi)
+    start = utc_seconds(sc.start_utc)
+    if start is None:
+        raise ValueError(f"mission {dr.seed}: start_utc {sc.start_utc!r} is not a UTC time")
+    flood = start + t_flood + rng.uniform(-TIDE_TIME_ERR_S, TIDE_TIME_ERR_S)
+    tide = {
+        "amplitude_mps": round(amp * (1.0 + rng.uniform(-TIDE_SPEED_ERR, TIDE_SPEED_ERR)), 3),
+        "toward_deg": round(
+            (sc.current.toward_deg + rng.uniform(-TIDE_DIRECTION_ERR_DEG, TIDE_DIRECTION_ERR_DEG))
+            % 360.0,
+            1,
+        ),
+        "max_flood_utc": dt.datetime.fromtimestamp(round(flood), dt.UTC).isoformat(),
+        "period_s": period,
+    }
+    navigation = {**dr.scenario["config"]["navigation"], "tide": tide}
+    return replace(
+        dr, scenario={**dr.scenario, "config": {**dr.scenario["config"], "navigation": navigation}}
+    )
+
+
 def noise_seed(seed: int, k: int) -> int | None:
     """The seed of mission ``seed``'s ``k``-th other draw of noise (None: as drawn)."""
     if k <= 0:
@@ -352,15 +397,18 @@ def fly(dr: Draw) -> tuple[list[Output], str, list[TruthSample]]:
     return out, err, truth
 
 
-def variant(seed: int, no_outliers: bool, wrong: bool, wide: bool) -> Draw:
+def variant(seed: int, no_outliers: bool, wrong: bool, wide: bool, tide: bool = False) -> Draw:
     """Mission ``seed``'s conditions as drawn, or without its outliers (:func:`clean`),
     with its priors too small (:func:`wrong_priors`), with its ranges noisier than the
-    config says (:func:`wide_ranges`)."""
+    config says (:func:`wide_ranges`), with its crew's tidal prediction
+    (:func:`tide_prediction`)."""
     dr = clean(draw(seed)) if no_outliers else draw(seed)
     if wrong:
         dr = wrong_priors(dr)
     if wide:
         dr = wide_ranges(dr)
+    if tide:
+        dr = tide_prediction(dr)
     return dr
 
 
@@ -395,13 +443,15 @@ def run_one(
     matched: tuple[str, ...] | None = None,
     wrong: bool = False,
     wide: bool = False,
+    tide: bool = False,
 ) -> Result:
     """Mission ``seed``; with ``noise_seed``, its conditions with another draw of noise;
     with ``no_outliers``, without its outliers (:func:`clean`); with ``matched``, navd
     given those parts of the bound's own model of the mission (navd/hil/bound.py,
     ``matched_config``); with ``wrong``, its priors too small (:func:`wrong_priors`); with
-    ``wide``, its ranges noisier than the config says (:func:`wide_ranges`)."""
-    dr = variant(seed, no_outliers, wrong, wide)
+    ``wide``, its ranges noisier than the config says (:func:`wide_ranges`); with ``tide``,
+    its crew's tidal prediction (:func:`tide_prediction`)."""
+    dr = variant(seed, no_outliers, wrong, wide, tide)
     d = Path(workdir) / f"mc-{seed}-{noise_seed}"
     mission, crew = write_flown(dr, d, noise_seed, matched)
     b = mission_bound(mission, crew)
@@ -622,6 +672,12 @@ def main() -> int:
         action="store_true",
         help="every mission's ranges 1.5 to 3 times noisier than the config's range_std_m",
     )
+    p.add_argument(
+        "--tide-prediction",
+        action="store_true",
+        help="the crews of missions whose water has a tide given a prediction of it "
+        "(navigation.tide), off by up to a fifth in speed, half an hour and 10 degrees",
+    )
     args = p.parse_args()
     matched = None if args.matched_noise is None else tuple(args.matched_noise or MATCHED_PARTS)
     model = (
@@ -645,6 +701,7 @@ def main() -> int:
             [matched] * n,
             [args.wrong_priors] * n,
             [args.wide_ranges] * n,
+            [args.tide_prediction] * n,
             jobs=args.jobs,
             scheduler=args.scheduler,
         )
@@ -672,6 +729,7 @@ def main() -> int:
         + (f" --noise-draw {args.noise_draw}" if args.noise_draw else "")
         + (" --wrong-priors" if args.wrong_priors else "")
         + (" --wide-ranges" if args.wide_ranges else "")
+        + (" --tide-prediction" if args.tide_prediction else "")
         + model
         + "`"
     )
@@ -688,12 +746,14 @@ def main() -> int:
         + (f"-noise-draw-{args.noise_draw}" if args.noise_draw else "")
         + "-wrong-priors" * args.wrong_priors
         + "-wide-ranges" * args.wide_ranges
+        + "-tide-prediction" * args.tide_prediction
         + model.replace(" --", "-").replace(" ", "-"),
         "Robustness"
         + " without outliers" * args.no_outliers
         + (f", noise draw {args.noise_draw}" if args.noise_draw else "")
         + " with every class's priors too small" * args.wrong_priors
         + " with ranges noisier than the config says" * args.wide_ranges
+        + " with the crews' tidal predictions" * args.tide_prediction
         + ("" if matched is None else " with the bound's noise model")
         + (f" ({', '.join(args.matched_noise)} only)" if args.matched_noise else ""),
     )

@@ -18,6 +18,7 @@ from typing import Literal
 
 from navd import endpoints, validation
 from navd.acoustics import SoundSpeed
+from navd.utc import utc_seconds
 from navd.validation import Invalid, T
 from navd.validation import number as _num
 
@@ -120,6 +121,18 @@ class IntegrityConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class TideConfig:
+    """The site's tidal stream as the crew's prediction gives it for the mission's day
+    (navd/filter/tide.py): a rectilinear semidiurnal stream.  No amplitude: none."""
+
+    amplitude_mps: float = _num(0.0, lo=0.0, hi=5.0)  # the speed of maximum flood
+    toward_deg: float = _num(0.0, lo=-360.0, hi=360.0)  # the flood's direction, true
+    # an instant of maximum flood, ISO 8601 with its zone (2016-04-14T15:20:00Z)
+    max_flood_utc: str = ""
+    period_s: float = _num(44714.0, lo=3600.0, hi=200000.0)  # M2, the principal lunar
+
+
+@dataclass(frozen=True, slots=True)
 class NavigationConfig:
     filter: Literal["default", "thesis", "vlbl"] = "default"
     rate_hz: float = _num(10.0, lo=1.0, hi=100.0)
@@ -143,6 +156,7 @@ class NavigationConfig:
     gps: GpsConfig = field(default_factory=GpsConfig)
     dvl: DvlConfig = field(default_factory=DvlConfig)
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
+    tide: TideConfig = field(default_factory=TideConfig)
 
 
 @dataclass(frozen=True, slots=True)
@@ -366,6 +380,13 @@ def config_from_dict(data: object) -> Config:
         _fail(
             "navigation.compass_deviation_deg",
             f"expected the 5 coefficients A, B, C, D, E (or none), got {n}",
+        )
+    tide = cfg.navigation.tide
+    if tide.amplitude_mps > 0.0 and utc_seconds(tide.max_flood_utc) is None:
+        _fail(
+            "navigation.tide.max_flood_utc",
+            f"{tide.max_flood_utc!r} is not an ISO 8601 time with its zone (such as "
+            "2016-04-14T15:20:00Z): a tide with an amplitude needs the time of a maximum flood",
         )
     m = cfg.devices.modem
     if m.reply_timeout_s <= m.modem_timeout_s:

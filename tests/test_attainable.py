@@ -133,3 +133,8 @@ def test_a_crew_s_tide_is_sized_from_the_mission_s_own() -> None:
     assert wide is not None and wide.std_mps == pytest.approx(1.5 * one.std_mps)
     site = Tide.for_mission(mt, None, 1.41)
     assert site is not None and site.std_mps == 1.41
+    # a prior for water whose tide nobody predicted is flown where there is none too
+    assert Tide.for_mission(m, None, 0.35) is None
+    anywhere = Tide.for_mission(m, None, 0.35, everywhere=True, walk_share=0.25)
+    assert anywhere is not None and (anywhere.std_mps, anywhere.walk_share) == (0.35, 0.25)
+    assert Tide.for_mission(m, 1.0, None, everywhere=True) is None  # no amplitude to scale

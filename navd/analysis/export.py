@@ -9,8 +9,6 @@ Foxglove's schemas (navd/formats/foxglove_mcap.py).
 
 from __future__ import annotations
 
-import datetime as dt
-import math
 from pathlib import Path
 
 from navd.analysis.replay import run_navigator
@@ -18,23 +16,10 @@ from navd.analysis.surfacing import surfacings
 from navd.formats import jsonlines
 from navd.formats.jsonlines import JsonObject
 from navd.formats.mission import Mission
-from navd.formats.mlog import MeasurementLog, read_measurement_log
+from navd.formats.mlog import MeasurementLog, log_epoch, read_measurement_log
 from navd.records import Gps
 from navd.schema import Estimate, split_outputs
 from navd.settings import Config
-
-
-def _epoch(header: JsonObject) -> float:
-    """Unix seconds at the log's t = 0: its start, less the monotonic clock then."""
-    start = header.get("start_utc")
-    try:
-        t0 = dt.datetime.fromisoformat(str(start).replace("Z", "+00:00")).timestamp()
-    except ValueError:
-        t0 = 0.0
-    mono = header.get("start_monotonic")
-    if header.get("time_base") == "monotonic" and isinstance(mono, int | float):
-        t0 -= float(mono)
-    return t0 if math.isfinite(t0) else 0.0
 
 
 def _health_lines(paths: list[Path]) -> list[JsonObject]:
@@ -72,7 +57,7 @@ def load_mission(paths: list[str | Path], cfg: Config, smooth: bool = False) -> 
         dec,
         fixes,
         log.records,
-        _epoch(log.header),
+        log_epoch(log.header) or 0.0,
         smoothed,
         _health_lines([Path(p) for p in paths]),
         surfacings(est, fixes),

@@ -15,7 +15,7 @@ from typing import IO
 
 from navd.filter import Navigator
 from navd.formats import jsonlines
-from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped
+from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped, log_epoch
 from navd.records import Record
 from navd.schema import Estimate, Output, to_dict
 from navd.settings import Config, ConfigError
@@ -93,6 +93,7 @@ def _smoothed(nav: Navigator, outputs: Iterable[Output]) -> Iterator[Output]:
 def run_navigator(log: MeasurementLog, cfg: Config, smooth: bool = False) -> ReplayResult:
     _check_smoothable(cfg, smooth)
     nav = Navigator(cfg, keep_history=smooth)
+    nav.set_clock(log_epoch(log.header))
     outputs = list(navigate(nav, log.records))
     filtered: list[Output] = []
     if smooth:
@@ -115,8 +116,11 @@ class _Logs:
     """The records of one log, or of the consecutive files of a rotated daemon log, as
     one stream; each file's skipped lines are said when the file is done."""
 
-    def __init__(self, paths: list[str | Path], strict: bool, err: IO[str]) -> None:
+    def __init__(
+        self, paths: list[str | Path], strict: bool, err: IO[str], nav: Navigator
+    ) -> None:
         self.err = err
+        self.nav = nav
         self.records = 0
         self.skipped = 0
         # every file is opened (its header checked) before anything is replayed
@@ -133,6 +137,8 @@ class _Logs:
 
     def __iter__(self) -> Iterator[Record]:
         for stream in self.streams:
+            # each file's own clock: a daemon's restart starts a new monotonic count
+            self.nav.set_clock(log_epoch(stream.header))
             for rec in stream:
                 self.records += 1
                 yield rec
@@ -166,7 +172,7 @@ def replay_outputs(input_path: str | Path, cfg: Config, smooth: bool = False) ->
     hundreds of missions and scores them (no file written and read back)."""
     _check_smoothable(cfg, smooth)
     nav = Navigator(cfg, keep_history=smooth)
-    return list(_replayed(nav, _Logs([input_path], False, io.StringIO()), smooth))
+    return list(_replayed(nav, _Logs([input_path], False, io.StringIO(), nav), smooth))
 
 
 def replay(
@@ -186,8 +192,8 @@ def replay(
     """
     _check_smoothable(cfg, smooth)
     err = err or sys.stderr  # looked up now: a test or a caller may have replaced it
-    logs = _Logs(input_path if isinstance(input_path, list) else [input_path], strict, err)
     nav = Navigator(cfg, keep_history=smooth)
+    logs = _Logs(input_path if isinstance(input_path, list) else [input_path], strict, err, nav)
     out = Path(out_path)
     tmp = out.with_name(out.name + ".part")
     estimates = 0

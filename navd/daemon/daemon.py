@@ -85,6 +85,9 @@ class Daemon:
         self.clock = clock
         self.notifier = notifier or Notifier()
         self.nav = Navigator(cfg)
+        # records are stamped with ``clock``; the tidal prediction is in UTC (the system
+        # clock, as the log's header takes it)
+        self.nav.set_clock(time.time() - clock())
         lc = cfg.log
         self.rlog = RecordLog(
             log_dir(cfg, os.environ),

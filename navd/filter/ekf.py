@@ -43,7 +43,7 @@ class RangeEKF(RangeFusion):
 
     def with_noise(self, noise: NoiseConfig) -> RangeEKF:
         """A fresh filter with this one's gates and site limit, and another noise model."""
-        return RangeEKF(
+        twin = RangeEKF(
             noise,
             self.gate_chi2,
             self.gate_chi2_long,
@@ -52,11 +52,17 @@ class RangeEKF(RangeFusion):
             self.relinearise_ranges,
             self.sound_speed_rel_std,
         )
+        twin.tide = self.tide
+        return twin
 
     # -- initialisation and GPS -------------------------------------------------------
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         nz = self.noise
-        self.x = np.array([lat, lon, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+        # the current's prior mean: the crew's tidal prediction where there is one
+        v = self.tide.velocity(t) if self.tide is not None else None
+        self._tide_v = v
+        cn, ce = v or (0.0, 0.0)
+        self.x = np.array([lat, lon, cn, ce, 0.0, 1.0, 0.0, 0.0])
         self.P = np.diag(
             [
                 std_m**2,
@@ -98,6 +104,7 @@ class RangeEKF(RangeFusion):
         beacon's outage as it was, if one was under way; how often replies read long."""
         held = held or Held()
         self.x, self.P = x.copy(), P.copy()
+        self._tide_v = None  # the checkpoint's current holds the stream at its time
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()
@@ -139,6 +146,7 @@ class RangeEKF(RangeFusion):
             q_off = self._off_std**2 * (1.0 - phi * phi)
         else:
             phi, q_off = 1.0, 0.0
+        self._follow_tide(t - 0.5 * dt)
         dn, de, u, cpsi, spsi = ekf_step.step(
             self.x, self.P, self._F, self._Q, dt, heading, speed, hd, phi, q_off, self._step_noise
         )

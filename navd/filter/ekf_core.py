@@ -20,6 +20,7 @@ from navd import geodesy
 from navd.filter.common import History
 from navd.filter.consider import CurrentConsider
 from navd.filter.ekf_step import Noise
+from navd.filter.tide import TidePrediction
 from navd.filter.track import RecentTrack
 from navd.settings import NoiseConfig
 
@@ -48,6 +49,10 @@ class EkfCore:
         # what a faster-changing current would add to the published covariance (none
         # unless the owner sets one: navd/filter/bank.py's uncalibrated belief)
         self.consider: CurrentConsider | None = None
+        # the crew's tidal prediction, a known change of the current (navd/filter/tide.py;
+        # none unless the owner sets one), and the stream it last put into the state
+        self.tide: TidePrediction | None = None
+        self._tide_v: tuple[float, float] | None = None
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
         # how the water-relative velocity (north, east) moves with heading bias and speed
@@ -75,6 +80,22 @@ class EkfCore:
 
     def close_history(self) -> None:
         self.history.close()
+
+    def _follow_tide(self, t: float) -> None:
+        """Move the current by the predicted stream's change since it was last put in
+        (``t``: the middle of the step about to be taken, where the step reads the
+        current).  The first prediction, or the first after a restart, is only noted:
+        the state then already holds the current there."""
+        if self.tide is None:
+            return
+        v = self.tide.velocity(t)
+        if v is None:
+            return
+        last = self._tide_v
+        self._tide_v = v
+        if last is not None:
+            self.x[2] += v[0] - last[0]
+            self.x[3] += v[1] - last[1]
 
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""

@@ -123,6 +123,15 @@ class Navigator(Fusion, Resuming):
         known = table.get(rec.beacon, Beacon())
         table[rec.beacon] = replace(known, lat=rec.lat, lon=rec.lon, depth=rec.depth)
 
+    def set_clock(self, utc_at_zero: float | None) -> None:
+        """UTC seconds since the Unix epoch at the records' t = 0 (a log's header, the
+        daemon's clock), which the crew's tidal prediction is given in
+        (navd/filter/tide.py); None, or a value that is not finite: not known, and the
+        prediction waits."""
+        if self.tide is not None:
+            ok = utc_at_zero is not None and math.isfinite(utc_at_zero)
+            self.tide.offset_s = utc_at_zero if ok else None
+
     def advance(self, t: float) -> list[Output]:
         """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,
         or the end of a log)."""

@@ -24,12 +24,15 @@ from navd.filter.integrity import Integrity
 from navd.filter.ranging import Ranging
 from navd.filter.smoothing import Smoothing
 from navd.filter.thesis import ThesisEKF
+from navd.filter.tide import TidePrediction
 from navd.filter.vlblmode import VlblMode
 from navd.schema import Advisory
 from navd.settings import Config
 
 
-def make_filter(cfg: Config) -> NavFilter:
+def make_filter(cfg: Config, tide: TidePrediction | None = None) -> NavFilter:
+    """The configured mode's filter; the default mode's follows ``tide`` (the crew's
+    tidal prediction, navd/filter/tide.py) where given."""
     nav = cfg.navigation
     nz = nav.noise
     if nav.filter == "vlbl":
@@ -43,12 +46,12 @@ def make_filter(cfg: Config) -> NavFilter:
         )
     g = nav.gate
     sound = nav.sound_speed
-    return CalibrationBank(
-        RangeEKF(
-            nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps,
-            sound_speed_rel_std=sound.std_mps / sound.model_obj().at(0.0),
-        )
+    config = RangeEKF(
+        nz, g.chi2, g.chi2_long, g.reacquire_after, nav.max_current_mps,
+        sound_speed_rel_std=sound.std_mps / sound.model_obj().at(0.0),
     )  # fmt: skip
+    config.tide = tide
+    return CalibrationBank(config)
 
 
 class NavParts:
@@ -58,6 +61,9 @@ class NavParts:
         self.counters: Counter[str] = Counter()
         # the RTS smoother's record of the run, kept only when asked for
         self.smoothing: Smoothing | None = Smoothing() if keep_history else None
+        # the crew's tidal prediction, with the clock the navigator is told (a restart's
+        # fresh filters keep both)
+        self.tide = TidePrediction.from_config(cfg.navigation.tide)
         self._fresh()
 
     def _fresh(self) -> None:
@@ -65,7 +71,7 @@ class NavParts:
         smoother's finished segments are the run's, and stay)."""
         cfg = self.cfg
         nav = self.nav
-        self.filter: NavFilter = make_filter(cfg)
+        self.filter: NavFilter = make_filter(cfg, self.tide)
         if self.smoothing is not None:
             self.smoothing.start(self.filter)
         self.dr = DeadReckoner()
@@ -99,7 +105,7 @@ class NavParts:
     def restart(self, reason: str) -> None:
         """Forget the estimate and start again at the next GPS fix."""
         self.counters[f"restarts_{reason}"] += 1
-        self.filter = make_filter(self.cfg)
+        self.filter = make_filter(self.cfg, self.tide)
         if self.smoothing is not None:
             self.smoothing.start(self.filter)
         self.integrity.clear()

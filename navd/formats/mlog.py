@@ -39,6 +39,7 @@ from navd.records import (
     Velocity,
     implausible,
 )
+from navd.utc import utc_seconds
 
 FORMAT = "navd-measurements"
 #: what the daemon's own log holds besides measurements; replay passes over them
@@ -50,7 +51,14 @@ HOLD_LINES = 16
 #: no record is anywhere near this long; a longer line is skipped without parsing it
 MAX_LINE_CHARS = 65536
 
-__all__ = ["LogError", "Skipped", "MeasurementLog", "read_measurement_log", "MeasurementWriter"]
+__all__ = [
+    "LogError",
+    "Skipped",
+    "MeasurementLog",
+    "read_measurement_log",
+    "MeasurementWriter",
+    "log_epoch",
+]
 
 
 class LogError(Exception):
@@ -232,6 +240,21 @@ def parse_record(obj: object) -> Record:
         return rec
     except _Bad as exc:
         raise ValueError(str(exc)) from None
+
+
+def log_epoch(header: JsonObject) -> float | None:
+    """UTC seconds (since the Unix epoch) at the log's t = 0: its start, less the
+    monotonic clock then where the daemon stamped its records with that clock; None where
+    the header does not say."""
+    t0 = utc_seconds(header.get("start_utc"))
+    if t0 is None:
+        return None
+    if header.get("time_base") == "monotonic":
+        mono = header.get("start_monotonic")
+        if not isinstance(mono, int | float) or isinstance(mono, bool):
+            return None
+        t0 -= float(mono)
+    return t0 if math.isfinite(t0) else None
 
 
 def _check_header(obj: object) -> JsonObject:
