@@ -179,6 +179,14 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
         lines.append(
             f"  beacon {name}: {where}, depth {b.depth:g} m, turnaround {b.turnaround_s:g} s"
         )
+    tide = nav.tide
+    if tide.amplitude_mps > 0.0:
+        lines.append(
+            f"  tidal prediction: {tide.amplitude_mps:g} m/s toward {tide.toward_deg:g} deg at "
+            f"maximum flood, {tide.max_flood_utc}, period {tide.period_s / 3600.0:.2f} h"
+        )
+        if nav.filter != "default":
+            lines.append(f"  warning: the {nav.filter} mode does not use the tidal prediction")
     lines += [f"  warning: {w}" for w in nav.sound_speed.model_obj().warnings()]
     if not args.merged:
         print("\n".join(lines))

@@ -145,3 +145,19 @@ def test_report_of_a_wrong_file_is_one_line(tmp_path: Path) -> None:
         r = _navd("report", str(f), "--out", str(tmp_path / "rep"))
         assert r.returncode == 2
         assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_check_config_says_the_tidal_prediction_it_will_follow(tmp_path: Path) -> None:
+    day = tmp_path / "day.yaml"
+    day.write_text(
+        "navigation:\n  filter: thesis\n  tide: {amplitude_mps: 0.5, toward_deg: 10, "
+        'max_flood_utc: "2016-04-14T15:20:00Z"}\n'
+    )
+    r = _navd("check-config", str(ROOT / "config" / "navd.yaml"), "--site", str(day))
+    assert r.returncode == 0, r.stderr
+    assert "tidal prediction: 0.5 m/s toward 10 deg" in r.stdout
+    assert "the thesis mode does not use the tidal prediction" in r.stdout
+    day.write_text("navigation:\n  tide: {amplitude_mps: 0.5}\n")
+    r = _navd("check-config", str(ROOT / "config" / "navd.yaml"), "--site", str(day))
+    assert r.returncode != 0
+    assert "navigation.tide.max_flood_utc" in r.stderr and "Traceback" not in r.stderr
