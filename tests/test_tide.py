@@ -161,3 +161,24 @@ def test_a_crew_s_prediction_brings_a_turning_stream_s_mission_nearer() -> None:
             assert err == ""
             rms.append(score(out, read_truth(d / "truth.jsonl")).rms_m)
     assert rms[1] < 0.8 * rms[0]
+
+
+def test_the_bank_tests_its_priors_about_the_prediction() -> None:
+    """A current that is the predicted flood does not refute a config whose current prior
+    is small: the prediction is that prior's mean."""
+    from navd.filter.bank import CalibrationBank
+
+    tp = _tide(amplitude=1.0)
+    tp.offset_s = FLOOD_S
+    followed = RangeEKF(NoiseConfig(current_init_std_mps=0.1), 9.0, 4.0, 3)
+    followed.tide = tp
+    bank = CalibrationBank(followed)
+    bank.initialise(math.radians(37.1), math.radians(-76.4), 5.0, 0.0)
+    assert bank.prior_distance2() == pytest.approx(0.0, abs=1e-18)
+    for k in range(1, 601):
+        bank.predict(0.1 * k, 0.1, 0.3, 1.2, 0.0)
+    assert bank.prior_distance2() < 1e-6  # still the prediction, a minute on
+    still = CalibrationBank(RangeEKF(NoiseConfig(current_init_std_mps=0.1), 9.0, 4.0, 3))
+    still.initialise(math.radians(37.1), math.radians(-76.4), 5.0, 0.0)
+    still.config.x[2:4] = bank.config.x[2:4]  # the same water, with no prediction of it
+    assert still.prior_distance2() > 50.0

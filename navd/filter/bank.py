@@ -278,7 +278,8 @@ class CalibrationBank:
 
     def prior_distance2(self) -> float:
         """The config filter's calibration against the config's priors, grown by the
-        random walks since they were set: a squared Mahalanobis distance."""
+        random walks since they were set: a squared Mahalanobis distance.  The current's
+        prior is about the crew's tidal prediction where there is one."""
         nz, x = self.config.noise, self.config.x
         dt = max(0.0, self.config.t - self._t0)
         var_c = nz.current_init_std_mps**2 + nz.current_walk_mps_per_sqrt_s**2 * dt
@@ -288,6 +289,8 @@ class CalibrationBank:
         )
         var_s = nz.speed_scale_init_std**2 + nz.speed_scale_walk_per_sqrt_s**2 * dt
         cn, ce, b, s = (float(v) for v in x[2:6])
+        pn, pe = self.config.predicted_current()
+        cn, ce = cn - pn, ce - pe
         return (cn * cn + ce * ce) / var_c + b * b / var_b + (s - 1.0) ** 2 / var_s
 
     def _test_priors(self) -> None:

@@ -104,7 +104,9 @@ class RangeEKF(RangeFusion):
         beacon's outage as it was, if one was under way; how often replies read long."""
         held = held or Held()
         self.x, self.P = x.copy(), P.copy()
-        self._tide_v = None  # the checkpoint's current holds the stream at its time
+        # the checkpoint's current is taken as it is: the stream's change while navd was
+        # down (minutes: centimetres a second) is left to the walk
+        self._tide_v = None
         self.P[0, 0] += grow_m2
         self.P[1, 1] += grow_m2
         self._forget_ranges()

@@ -97,6 +97,12 @@ class EkfCore:
             self.x[2] += v[0] - last[0]
             self.x[3] += v[1] - last[1]
 
+    def predicted_current(self) -> tuple[float, float]:
+        """The current's prior mean now (north, east, m/s): the crew's tidal prediction
+        where one is followed, else still water."""
+        v = self.tide.velocity(self.t) if self.tide is not None else None
+        return v or (0.0, 0.0)
+
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""
         speed = math.hypot(float(self.x[2]), float(self.x[3]))

@@ -12,11 +12,12 @@ navd takes that prediction as a rectilinear semidiurnal stream,
 
     v(t) = A cos(2 pi (t - t_flood) / T) (cos theta, sin theta),
 
-and moves the filter's current by the prediction's change over each step: a known input
-to the current's transition (Simon, *Optimal State Estimation*, 2006, 5.1), so the
-current state still holds the whole current, and what the prediction leaves out (its
-errors of size, time and direction, a mean stream) is what the walk and the ranges follow.
-Before the first step the current's prior mean is the prediction.
+and moves the filter's current by the prediction's change over each step, a known input
+to the current's transition (a control input: Simon, *Optimal State Estimation*, 2006,
+ch. 5).  The current state still holds the whole current, and what the prediction leaves
+out (its errors of size, time and direction, a mean stream) is what the walk and the
+ranges follow.  The current's prior mean is the prediction: at the start, and where the
+bank tests the config's priors (navd/filter/bank.py).
 
 The prediction is in UTC; the filter's time is the records' (monotonic seconds live,
 the log's seconds in replay).  The navigator learns the offset between them from the
