@@ -131,8 +131,11 @@ def _check(out: Iterable[Published]) -> None:
 @given(st.sampled_from(["default", "thesis", "vlbl"]), streams())
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_no_finite_record_stream_makes_the_navigator_raise(mode: str, recs: list) -> None:
-    cfg = config_from_dict({"navigation": {"filter": mode}, "beacons": BEACONS})
+    # with a strong, fast tidal prediction, so that its path is under test too
+    tide = {"amplitude_mps": 3.0, "period_s": 3600.0, "max_flood_utc": "2016-04-14T15:20:00Z"}
+    cfg = config_from_dict({"navigation": {"filter": mode, "tide": tide}, "beacons": BEACONS})
     nav = Navigator(cfg, keep_history=mode != "vlbl")
+    nav.set_clock(1460647200.0)
     out: list[Published] = []
     for r in recs:
         out += nav.feed(r)
