@@ -148,7 +148,8 @@ class RangeEKF(RangeFusion):
             q_off = self._off_std**2 * (1.0 - phi * phi)
         else:
             phi, q_off = 1.0, 0.0
-        self._follow_tide(t - 0.5 * dt)
+        if self.tide is not None:
+            self._follow_tide(t - 0.5 * dt)
         dn, de, u, cpsi, spsi = ekf_step.step(
             self.x, self.P, self._F, self._Q, dt, heading, speed, hd, phi, q_off, self._step_noise
         )
