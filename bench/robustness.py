@@ -320,9 +320,9 @@ def wide_ranges(dr: Draw) -> Draw:
     return replace(dr, scenario={**dr.scenario, "acoustics": acoustics})
 
 
-# How far a crew's tidal prediction may be off: a prediction for a station a few
-# kilometres away (NOAA's tidal current predictions) gives speeds to about a fifth, the
-# times of maximum flood to about half an hour, the flood's direction to about 10 degrees.
+# How far the bench takes a crew's tidal prediction to be off (an assumption, not a
+# measurement: a station's prediction some kilometres from the mission, the speed of
+# maximum flood to a fifth, its time to half an hour, the flood's direction to 10 degrees).
 TIDE_SPEED_ERR = 0.2
 TIDE_TIME_ERR_S = 1800.0
 TIDE_DIRECTION_ERR_DEG = 10.0
