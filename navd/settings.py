@@ -128,7 +128,11 @@ class TideConfig:
     amplitude_mps: float = _num(0.0, lo=0.0, hi=5.0)  # the speed of maximum flood
     toward_deg: float = _num(0.0, lo=-360.0, hi=360.0)  # the flood's direction, true
     # an instant of maximum flood, ISO 8601 with its zone (2016-04-14T15:20:00Z)
-    max_flood_utc: str = ""
+    max_flood_utc: str = validation.text(
+        "",
+        r"(\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d{1,9})?)?(Z|[+-]\d{2}:?\d{2}))?",
+        "an ISO 8601 time with its zone, such as 2016-04-14T15:20:00Z",
+    )
     period_s: float = _num(44714.0, lo=3600.0, hi=200000.0)  # M2, the principal lunar
 
 
@@ -385,8 +389,8 @@ def config_from_dict(data: object) -> Config:
     if tide.amplitude_mps > 0.0 and utc_seconds(tide.max_flood_utc) is None:
         _fail(
             "navigation.tide.max_flood_utc",
-            f"{tide.max_flood_utc!r} is not an ISO 8601 time with its zone (such as "
-            "2016-04-14T15:20:00Z): a tide with an amplitude needs the time of a maximum flood",
+            f"{validation.show(tide.max_flood_utc)} is not an ISO 8601 time with its zone (such "
+            "as 2016-04-14T15:20:00Z): a tide with an amplitude needs the time of a maximum flood",
         )
     m = cfg.devices.modem
     if m.reply_timeout_s <= m.modem_timeout_s:

@@ -128,7 +128,10 @@ def test_the_config_names_a_tide_without_its_time() -> None:
         msg = str(exc.value)
         assert "navigation.tide.max_flood_utc" in msg and "\n" not in msg
     config_from_dict({"navigation": {"tide": {"amplitude_mps": 0.5, "max_flood_utc": FLOOD}}})
-    config_from_dict({"navigation": {"tide": {"max_flood_utc": "unused without an amplitude"}}})
+    config_from_dict({"navigation": {"tide": {"toward_deg": 10.0}}})  # no amplitude: no time
+    with pytest.raises(ConfigError) as exc:  # a value that is no time at all, however long
+        config_from_dict({"navigation": {"tide": {"max_flood_utc": "x" * 100_000}}})
+    assert "navigation.tide.max_flood_utc" in str(exc.value) and len(str(exc.value)) < 300
 
 
 def test_a_log_says_its_clock() -> None:
