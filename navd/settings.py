@@ -133,7 +133,7 @@ class TideConfig:
         r"(\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d{1,9})?)?(Z|[+-]\d{2}:?\d{2}))?",
         "an ISO 8601 time with its zone, such as 2016-04-14T15:20:00Z",
     )
-    period_s: float = _num(44714.0, lo=3600.0, hi=200000.0)  # M2, the principal lunar
+    period_s: float = _num(44714.0, lo=3600.0, hi=200000.0)  # M2, the principal lunar semidiurnal
 
 
 @dataclass(frozen=True, slots=True)

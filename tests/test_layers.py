@@ -22,6 +22,7 @@ FOUNDATION = {
     "navd.schema",
     "navd.settings",
     "navd.validation",
+    "navd.utc",
     "navd.files",
     "navd.endpoints",
     "navd.formats.jsonlines",
