@@ -425,9 +425,10 @@ def write_flown(
     return mission, crew
 
 
-def selected(missions: int, only: str | None, kind: str | None) -> list[int]:
-    """Of seeds 1..``missions``, those of class ``only`` and geometry ``kind`` (if given)."""
-    seeds = list(range(1, missions + 1))
+def selected(missions: int, only: str | None, kind: str | None, first: int = 1) -> list[int]:
+    """Of seeds ``first``..``missions``, those of class ``only`` and geometry ``kind`` (if
+    given)."""
+    seeds = list(range(first, missions + 1))
     if only:
         seeds = [s for s in seeds if draw(s).cls == only]
     if kind:
@@ -529,7 +530,7 @@ def _row(name: str, rs: list[Result]) -> str:
     )
 
 
-def table(results: list[Result], n: int) -> str:
+def table(results: list[Result], n: int, first: int = 1) -> str:
     classes: list[tuple[str, list[Result]]] = [
         (f"class {c}", [r for r in results if r.draw.cls == c]) for c in CLASSES
     ]
@@ -545,7 +546,8 @@ def table(results: list[Result], n: int) -> str:
         ("**all**", results),
     ]
     lines = [
-        f"{n} missions, seeds 1..{n}, each with its own drawn class and conditions",
+        f"{n - first + 1} missions, seeds {first}..{n}, each with its own drawn class and "
+        "conditions",
         "(bench/robustness.py). RMS over the submerged part, in metres; *bound* = the",
         "mission's posterior Cramer-Rao bound (navd/hil/bound.py), mean over the class;",
         "*/ bound* = the class's RMS over missions of the default's RMS, over that of",
@@ -613,6 +615,14 @@ def redraw(seed: int, n: int, jobs: int, scheduler: str | None) -> int:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--missions", type=int, default=120)
+    p.add_argument(
+        "--from",
+        dest="first",
+        type=int,
+        default=1,
+        metavar="SEED",
+        help="start at this seed: seeds SEED..--missions (missions not flown before)",
+    )
     p.add_argument(
         "--jobs", type=int, default=default_jobs(), help="worker processes (default: the cores)"
     )
@@ -687,7 +697,7 @@ def main() -> int:
     )
     if args.redraw is not None:
         return redraw(args.redraw, args.missions, args.jobs, args.scheduler)
-    seeds = selected(args.missions, args.only, args.kind)
+    seeds = selected(args.missions, args.only, args.kind, args.first)
     # each mission's files are written and read by the one worker that runs it
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navd-mc-") as tmp:
@@ -722,7 +732,9 @@ def main() -> int:
                     row[name] = asdict(sc) if sc is not None else None
                 fh.write(json.dumps(row) + "\n")
     cmd = (
-        f"`python -m bench.robustness --missions {args.missions}"
+        "`python -m bench.robustness"
+        + (f" --from {args.first}" if args.first != 1 else "")
+        + f" --missions {args.missions}"
         + (f" --only {args.only}" if args.only else "")
         + (f" --kind {args.kind}" if args.kind else "")
         + (" --no-outliers" if args.no_outliers else "")
@@ -739,7 +751,7 @@ def main() -> int:
         f"1,000 missions of this mix at this pace: {1000 * took / len(seeds) / 60:.0f} min)."
     )
     report(
-        f"{cmd}\n\n{table(results, args.missions)}\n\n{pace}",
+        f"{cmd}\n\n{table(results, args.missions, args.first)}\n\n{pace}",
         args.write,
         "bench-robustness"
         + "-no-outliers" * args.no_outliers

@@ -107,3 +107,13 @@ def test_a_crew_s_tidal_prediction_is_its_mission_s_stream_within_the_errors_dra
             k: v for k, v in dr.scenario.items() if k != "config"
         }
     assert tidal >= 10
+
+
+def test_the_monte_carlo_can_start_past_the_missions_it_has_flown() -> None:
+    """``--from`` flies seeds not flown before, each exactly as a run from seed 1 draws it."""
+    from bench.robustness import selected
+
+    assert selected(700, None, None, first=401) == list(range(401, 701))
+    tidal = selected(700, "tidal-turning", None, first=401)
+    assert tidal and all(s >= 401 and draw(s).cls == "tidal-turning" for s in tidal)
+    assert tidal == [s for s in selected(700, "tidal-turning", None) if s >= 401]

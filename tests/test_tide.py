@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from bench.common import replay_mission
 from bench.robustness import CLASSES, draw, tide_prediction, write_flown
+from navd import geodesy
 from navd.analysis.score import score
 from navd.filter import Navigator
 from navd.filter.ekf import RangeEKF
@@ -97,8 +98,6 @@ def test_a_restart_takes_its_checkpoint_s_current_as_it_is() -> None:
 
 
 def _offset_m(a: RangeEKF, b: RangeEKF) -> tuple[float, float]:
-    from navd import geodesy
-
     e, n, _ = geodesy.enu_offset(a.x[0], a.x[1], 0.0, b.x[0], b.x[1], 0.0)
     return e, n
 

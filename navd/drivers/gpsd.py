@@ -13,7 +13,6 @@ a cycle): the first is the fix, as with several talkers' GGAs.  Everything else
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 
 from navd.drivers.codec import DecodeStats
@@ -21,6 +20,7 @@ from navd.drivers.gps import Epochs, GpsTime
 from navd.formats import jsonlines
 from navd.formats.jsonlines import JsonObject
 from navd.records import Gps, implausible
+from navd.utc import utc_time
 
 #: what navd sends gpsd on connecting: JSON reports, no NMEA
 WATCH = b'?WATCH={"enable":true,"json":true}\n'
@@ -38,16 +38,6 @@ def _num(o: JsonObject, key: str) -> float | None:
     if isinstance(v, bool) or not isinstance(v, int | float):
         return None
     return float(v) if math.isfinite(v) else None
-
-
-def _utc(text: object) -> dt.datetime | None:
-    if not isinstance(text, str) or len(text) > 40:
-        return None
-    try:
-        t = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        return None
-    return t if t.tzinfo is not None else None
 
 
 class GpsdDecoder:
@@ -118,7 +108,7 @@ class GpsdDecoder:
 
     def _tpv(self, o: JsonObject, t: float) -> list[object]:
         out: list[object] = []
-        utc = _utc(o.get("time"))
+        utc = utc_time(o.get("time"))
         mode = o.get("mode")
         if utc is not None:
             out.append(GpsTime(t, utc, isinstance(mode, int) and mode >= 2))

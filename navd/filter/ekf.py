@@ -59,9 +59,8 @@ class RangeEKF(RangeFusion):
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         nz = self.noise
         # the current's prior mean: the crew's tidal prediction where there is one
-        v = self.tide.velocity(t) if self.tide is not None else None
-        self._tide_v = v
-        cn, ce = v or (0.0, 0.0)
+        self._tide_v = self._tide_at(t)
+        cn, ce = self._tide_v or (0.0, 0.0)
         self.x = np.array([lat, lon, cn, ce, 0.0, 1.0, 0.0, 0.0])
         self.P = np.diag(
             [

@@ -81,14 +81,16 @@ class EkfCore:
     def close_history(self) -> None:
         self.history.close()
 
+    def _tide_at(self, t: float) -> tuple[float, float] | None:
+        """The crew's predicted stream at ``t``; None without one, or without its clock."""
+        return self.tide.velocity(t) if self.tide is not None else None
+
     def _follow_tide(self, t: float) -> None:
         """Move the current by the predicted stream's change since it was last put in
         (``t``: the middle of the step about to be taken, where the step reads the
         current).  The first prediction, or the first after a restart, is only noted:
         the state then already holds the current there."""
-        if self.tide is None:
-            return
-        v = self.tide.velocity(t)
+        v = self._tide_at(t)
         if v is None:
             return
         last = self._tide_v
@@ -100,8 +102,7 @@ class EkfCore:
     def predicted_current(self) -> tuple[float, float]:
         """The current's prior mean now (north, east, m/s): the crew's tidal prediction
         where one is followed, else still water."""
-        v = self.tide.velocity(self.t) if self.tide is not None else None
-        return v or (0.0, 0.0)
+        return self._tide_at(self.t) or (0.0, 0.0)
 
     def _limit_current(self) -> None:
         """Hold the current to what water can do at this site (``max_current_mps``)."""
