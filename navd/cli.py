@@ -183,7 +183,8 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     if tide.amplitude_mps > 0.0:
         lines.append(
             f"  tidal prediction: {tide.amplitude_mps:g} m/s toward {tide.toward_deg:g} deg at "
-            f"maximum flood, {tide.max_flood_utc}, period {tide.period_s / 3600.0:.2f} h"
+            f"maximum flood, {tide.max_flood_utc}, period {tide.period_s / 3600.0:.2f} h, "
+            f"off by up to {tide.error_fraction:.0%} of its speed"
         )
         if nav.filter != "default":
             lines.append(f"  warning: the {nav.filter} mode does not use the tidal prediction")

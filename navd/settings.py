@@ -134,6 +134,9 @@ class TideConfig:
         "an ISO 8601 time with its zone, such as 2016-04-14T15:20:00Z",
     )
     period_s: float = _num(44714.0, lo=3600.0, hi=200000.0)  # M2, the principal lunar semidiurnal
+    # how far the prediction may be off, as a fraction of its amplitude (its errors of
+    # size, time and direction together): the turning stream the ellipse still allows for
+    error_fraction: float = _num(0.5, gt=0.0, hi=2.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -168,6 +168,25 @@ def test_refuted_priors_publish_the_uncalibrated_belief() -> None:
         assert bank.history is bank.uncal.history
 
 
+def test_a_refuted_belief_never_narrows_the_published_ellipse() -> None:
+    """Once refuted, the config belief's covariance came of priors the data refuted: even
+    where it agrees with the followed belief on the place and is far surer of it, the
+    published ellipse holds the followed belief's own, and the config's mean beside it."""
+    bank, _ = _run(NoiseConfig(current_init_std_mps=0.04), (0.25, -0.37), 1)
+    assert bank.refuted
+    bank.config.x = bank.uncal.x.copy()
+    bank.config.P = bank.uncal.P * 1e-4
+    pub, own = bank.estimate(), bank.uncal.estimate()
+
+    def cov(e: StateEstimate) -> np.ndarray:
+        return np.array([[e.var_n, e.cov_ne], [e.cov_ne, e.var_e]])
+
+    assert np.linalg.eigvalsh(cov(pub) - cov(own)).min() > -1e-9 * own.var_n
+    lat, _ = geodesy.offset_position(bank.config.x[0], bank.config.x[1], 100.0, 0.0)
+    bank.config.x[0] = lat  # the config belief 100 m north: held too
+    assert bank.estimate().var_n > own.var_n + 0.01 * 100.0**2
+
+
 def test_a_right_config_is_never_refuted() -> None:
     for seed in range(1, 5):
         bank, _ = _run(NoiseConfig(), (0.1, 0.05), seed, minutes=20.0, outliers=0.3)

@@ -50,6 +50,20 @@ def test_it_is_the_difference_the_extra_walk_makes_under_the_filters_own_gains()
     assert dnn > 0.0 and dee > 0.0
 
 
+def test_a_new_walk_counts_from_its_time_and_keeps_the_error_before_it() -> None:
+    """Water allowed for at one walk until ``t`` and at another after: the error until
+    ``t`` stays the first walk's, and the rest integrates the second's."""
+    a, b = 0.006, 0.002
+    c = CurrentConsider(a)
+    c.reset(0.0)
+    c.set_walk(b, 100.0)
+    P = _propagate(_propagate(np.zeros((4, 4)), 100.0, a * a), 60.0, b * b)
+    assert np.allclose(c.covariance(160.0), P, rtol=1e-12, atol=1e-12)
+    assert c.walk == b
+    c.set_walk(float("nan"), 200.0)  # no walk at all: the one it has stays
+    assert c.walk == b
+
+
 @settings(max_examples=200, deadline=None)
 @given(
     st.floats(allow_nan=True, allow_infinity=True),
@@ -60,4 +74,5 @@ def test_it_never_raises(t: float, k: list[float], h: list[float]) -> None:
     c = CurrentConsider(0.005)
     c.reset(0.0)
     c.update(t, np.array(k), np.array(h))
+    c.set_walk(k[0], t)
     c.position(t + 1.0)

@@ -11,7 +11,7 @@ import numpy as np
 
 from navd.analysis.replay import replay_outputs
 from navd.config import load_config
-from navd.filter.smoothing import added
+from navd.filter.common import psd_part
 from navd.hil.scenario import load_scenario
 from navd.hil.sim_cli import write_mission
 from navd.hil.world import simulate
@@ -24,11 +24,11 @@ def test_what_is_added_is_the_positive_part_of_the_difference() -> None:
         nn, ee, ne = (float(v) for v in rng.normal(scale=10.0, size=3))
         w, v = np.linalg.eigh(np.array([[nn, ne], [ne, ee]]))
         want = (v * np.clip(w, 0.0, None)) @ v.T
-        a_nn, a_ee, a_ne = added(nn, ee, ne)
+        a_nn, a_ee, a_ne = psd_part(nn, ee, ne)
         assert np.allclose([[a_nn, a_ne], [a_ne, a_ee]], want, atol=1e-9)
-    assert added(4.0, 1.0, 0.5) == (4.0, 1.0, 0.5)  # a covariance already: as it was
+    assert psd_part(4.0, 1.0, 0.5) == (4.0, 1.0, 0.5)  # a covariance already: as it was
     for broken in ((math.nan, 1.0, 0.0), (math.inf, 1.0, 0.0), (1.0, 1.0, -math.inf)):
-        assert added(*broken) == (0.0, 0.0, 0.0)
+        assert psd_part(*broken) == (0.0, 0.0, 0.0)
 
 
 def test_every_smoothed_ellipse_is_positive_definite() -> None:

@@ -184,3 +184,42 @@ def test_the_bank_tests_its_priors_about_the_prediction() -> None:
     still.initialise(math.radians(37.1), math.radians(-76.4), 5.0, 0.0)
     still.config.x[2:4] = bank.config.x[2:4]  # the same water, with no prediction of it
     assert still.prior_distance2() > 50.0
+
+
+def test_given_a_prediction_the_ellipse_allows_only_for_what_it_may_miss() -> None:
+    """The uncalibrated belief's ellipse allows for a turning stream as strong as the
+    site's strongest; once a prediction is followed, as strong as its stated error."""
+    from navd.filter.bank import CalibrationBank, tidal_walk
+
+    def considered_m(tide: TidePrediction | None, clock: bool) -> float:
+        f = RangeEKF(NoiseConfig(current_walk_mps_per_sqrt_s=0.0), 9.0, 4.0, 3, 2.0)
+        f.tide = tide
+        if tide is not None:
+            tide.offset_s = FLOOD_S if clock else None
+        bank = CalibrationBank(f)
+        bank.initialise(math.radians(37.1), math.radians(-76.4), 5.0, 0.0)
+        for k in range(1, 6001):  # ten minutes, no ranges
+            bank.predict(0.1 * k, 0.1, 0.3, 1.2, 0.0)
+        consider = bank.uncal.consider
+        assert consider is not None
+        return math.sqrt(consider.covariance(600.0)[0, 0])
+
+    unknown = considered_m(None, False)
+    # a walk's position error grows as walk * t^1.5 / sqrt(3)
+    assert unknown == pytest.approx(tidal_walk(2.0) * 600.0**1.5 / math.sqrt(3.0), rel=1e-6)
+    assert considered_m(_tide(amplitude=0.8), False) == pytest.approx(unknown)  # no clock
+    tp = _tide(amplitude=0.8)
+    assert considered_m(tp, True) == pytest.approx(unknown * 0.5 * 0.8 / 2.0, rel=1e-6)
+    tp.error_fraction = 10.0  # a prediction worse than knowing nothing adds nothing
+    assert considered_m(tp, True) == pytest.approx(unknown)
+
+
+def test_the_config_bounds_a_prediction_s_error() -> None:
+    tide = {"amplitude_mps": 0.5, "max_flood_utc": FLOOD}
+    cfg = config_from_dict({"navigation": {"tide": {**tide, "error_fraction": 0.3}}})
+    tp = TidePrediction.from_config(cfg.navigation.tide)
+    assert tp is not None and tp.unknown_mps == pytest.approx(0.15)
+    for bad in (0.0, -0.2, 3.0, "half"):
+        with pytest.raises(ConfigError) as exc:
+            config_from_dict({"navigation": {"tide": {**tide, "error_fraction": bad}}})
+        assert "navigation.tide.error_fraction" in str(exc.value) and "\n" not in str(exc.value)

@@ -42,9 +42,15 @@ that threw its covariance away, not by the ranges weighing against its priors, s
 weight of the ranges says nothing of it, and a dragged filter can sit a kilometre off
 on the wrong side of its beacon while still predicting its ranges.  From then on the
 bank follows the uncalibrated filter (its mean, its gate decisions, its history for the
-smoother, its state for the checkpoint), with the covariance of the mixture about that
-mean, and says so (``calibration_refuted``).  A right config's own estimate stays well
-inside its priors, since its posterior is narrower than them.
+smoother, its state for the checkpoint), and says so (``calibration_refuted``).  Its
+ellipse is then the mixture's about that mean, but never narrower than the uncalibrated
+filter's own: the config belief may still widen it (its mean elsewhere), not narrow it, for
+its covariance came of the refuted priors.  Where both beliefs put the vehicle in one
+place, the mixture drew the ellipse about that place nearly as narrow as those priors, and
+just after a dive, with the heading bias still untested, told the autopilot ``ok`` while
+15 m off (BENCHMARKS.md, "A refuted belief's narrowness").
+A right config's own estimate stays well inside its priors, since its posterior is
+narrower than them.
 
 The uncalibrated belief can also be lost on its own.  Its wide priors let one range that
 reads a few metres short just after the dive (the boat's GPS wandering) move its speed
@@ -81,6 +87,7 @@ from navd.filter.common import (
     History,
     RangeMeas,
     StateEstimate,
+    psd_part,
     spread_about,
 )
 from navd.filter.consider import CurrentConsider
@@ -173,8 +180,19 @@ class CalibrationBank:
         self.uncal = config.with_noise(uncalibrated_noise(config.noise, config.max_current))
         self.uncal.reacquire_trusts_current = False
         own = self.uncal.noise.current_walk_mps_per_sqrt_s
-        fast = tidal_walk(config.max_current)
-        self.uncal.consider = CurrentConsider(math.sqrt(max(0.0, fast * fast - own * own)))
+
+        def beyond_own(stream_mps: float) -> float:
+            fast = tidal_walk(stream_mps)
+            return math.sqrt(max(0.0, fast * fast - own * own))
+
+        self._unknown_walk = beyond_own(config.max_current)
+        self.uncal.consider = CurrentConsider(self._unknown_walk)
+        # given a crew's tidal prediction, once followed, only what it may miss turns
+        # unknown (navd/filter/tide.py)
+        tide = config.tide
+        self._predicted_walk = (
+            beyond_own(min(config.max_current, tide.unknown_mps)) if tide is not None else None
+        )
         self.w_uncal = _PRIOR  # the weight of the uncalibrated belief
         self.refuted = False  # the config's priors, by the config filter's own estimate
         self._t0 = 0.0  # when the priors were set (the walks grow them from then)
@@ -299,6 +317,10 @@ class CalibrationBank:
             self.refuted = True
 
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None:
+        tide, consider = self.config.tide, self.uncal.consider
+        if self._predicted_walk is not None and consider is not None and tide is not None:
+            walk = self._predicted_walk if tide.in_use else self._unknown_walk
+            consider.set_walk(walk, self.uncal.t)
         self.config.predict(t, dt, heading, speed, hd)
         self.uncal.predict(t, dt, heading, speed, hd)
         self.mirror.predict(t, dt, heading, speed, hd)
@@ -336,9 +358,17 @@ class CalibrationBank:
         # weight the evidence drove to nearly nothing would otherwise draw the ellipse
         # of one belief alone, from ranges that tested only their line of sight.
         w = switched(self.w_uncal)
-        if self.refuted:
-            a, b, w = b, a, 1.0 - w
-        return self.mirror.mixed(spread_about(a, b, w))
+        if not self.refuted:
+            return self.mirror.mixed(spread_about(a, b, w))
+        # the config filter's covariance came of the priors the data refuted: its mean is
+        # still a place to hold, its narrowness no evidence (the module's docstring)
+        m = spread_about(b, a, 1.0 - w)
+        nn, ee, ne = psd_part(b.var_n - m.var_n, b.var_e - m.var_e, b.cov_ne - m.cov_ne)
+        return self.mirror.mixed(
+            StateEstimate(
+                m.lat, m.lon, m.current_n, m.current_e, m.var_n + nn, m.var_e + ee, m.cov_ne + ne
+            )
+        )
 
     def estimate_of(self, x: np.ndarray, P: np.ndarray) -> StateEstimate:
         """A state of the followed filter's chain (the smoother's), as that filter gives it."""

@@ -326,6 +326,20 @@ def principal_axes(nn: float, ee: float, ne: float) -> tuple[float, float, float
     return mean + root, mean - root, 0.5 * math.atan2(2.0 * ne, nn - ee)
 
 
+def psd_part(nn: float, ee: float, ne: float) -> tuple[float, float, float]:
+    """The positive semi-definite part of the symmetric 2x2 ``[[nn, ne], [ne, ee]]``: its
+    negative eigenvalue, if any, taken as nothing; nothing where it is not finite."""
+    if not math.isfinite(nn + ee + ne):
+        return 0.0, 0.0, 0.0
+    hi, lo, theta = principal_axes(nn, ee, ne)
+    if lo >= 0.0:
+        return nn, ee, ne
+    if hi <= 0.0:
+        return 0.0, 0.0, 0.0
+    c, s = math.cos(theta), math.sin(theta)  # the axis of the positive eigenvalue
+    return hi * c * c, hi * s * s, hi * c * s
+
+
 def joseph_update(
     P: np.ndarray, H: np.ndarray, r_var: float
 ) -> tuple[np.ndarray, np.ndarray, float]:

@@ -38,6 +38,18 @@ class CurrentConsider:
         # reads it at every tick, a range rewrites it every few seconds
         self._flat = [0.0] * 16
 
+    def set_walk(self, extra_walk_mps_per_sqrt_s: float, t: float) -> None:
+        """Allow for another extra walk from ``t`` on; the error followed until then stays."""
+        w = extra_walk_mps_per_sqrt_s
+        q2 = w * w if w > 0.0 else 0.0  # NaN is no walk; a huge one overflows to inf
+        if q2 == self.q2 or not (math.isfinite(w) and math.isfinite(q2)):
+            return
+        D = self.covariance(t)
+        if np.isfinite(D).all():
+            self._flat = [float(v) for v in D.ravel()]
+            self.t = max(self.t, t)
+        self.q2 = q2
+
     @property
     def walk(self) -> float:
         """The extra walk allowed for (m/s/sqrt s)."""

@@ -18,7 +18,6 @@ quarter of the submerged ticks of a run that refuted its current prior, BENCHMAR
 
 from __future__ import annotations
 
-import math
 import tempfile
 from array import array
 from collections.abc import Iterator
@@ -26,26 +25,12 @@ from collections.abc import Iterator
 import numpy as np
 
 from navd.filter import estimate
-from navd.filter.common import NavFilter, Smoothable, StateEstimate, principal_axes
+from navd.filter.common import NavFilter, Smoothable, StateEstimate, psd_part
 from navd.filter.smoother import rts_backward
 from navd.formats import jsonlines
 from navd.schema import Estimate, from_dict, to_dict
 
 _FIELDS = len(StateEstimate.__slots__)
-
-
-def added(nn: float, ee: float, ne: float) -> tuple[float, float, float]:
-    """The positive semi-definite part of the symmetric 2x2 ``[[nn, ne], [ne, ee]]``: its
-    negative eigenvalue, if any, taken as nothing; nothing where it is not finite."""
-    if not math.isfinite(nn + ee + ne):
-        return 0.0, 0.0, 0.0
-    hi, lo, theta = principal_axes(nn, ee, ne)
-    if lo >= 0.0:
-        return nn, ee, ne
-    if hi <= 0.0:
-        return 0.0, 0.0, 0.0
-    c, s = math.cos(theta), math.sin(theta)  # the axis of the positive eigenvalue
-    return hi * c * c, hi * s * s, hi * c * s
 
 
 class _Segment:
@@ -62,7 +47,7 @@ class _Segment:
         f = self.filter
         own = f.estimate_of(f.x, f.P)
         self.beside.extend(
-            added(
+            psd_part(
                 est.std_n * est.std_n - own.var_n,
                 est.std_e * est.std_e - own.var_e,
                 est.cov_ne - own.cov_ne,

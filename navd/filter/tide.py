@@ -19,6 +19,11 @@ out (its errors of size, time and direction, a mean stream) is what the walk and
 ranges follow.  The current's prior mean is the prediction: at the start, and where the
 bank tests the config's priors (navd/filter/bank.py).
 
+What the prediction may miss still turns with the tide, and one beacon still cannot see
+it across its line of sight: the default mode's ellipse allows for a turning stream as
+strong as the prediction's stated error (``error_fraction`` of its amplitude) in place of
+the site's strongest (navd/filter/bank.py), once the prediction is followed.
+
 The prediction is in UTC; the filter's time is the records' (monotonic seconds live,
 the log's seconds in replay).  The navigator learns the offset between them from the
 log's header or the daemon's clock (``offset_s``); until then the prediction is not used.
@@ -43,6 +48,8 @@ class TidePrediction:
     toward_rad: float  # the flood's direction, true, clockwise from north
     period_s: float
     flood_utc_s: float  # an instant of maximum flood, UTC seconds since the epoch
+    # how far the prediction may be off, as a fraction of its amplitude
+    error_fraction: float = 0.5
     # UTC seconds at filter time 0: unknown (None) until the navigator is told
     offset_s: float | None = None
 
@@ -53,13 +60,23 @@ class TidePrediction:
         if not (tc.amplitude_mps > 0.0 and flood is not None):
             return None
         return TidePrediction(
-            tc.amplitude_mps, math.radians(tc.toward_deg), tc.period_s, flood
+            tc.amplitude_mps, math.radians(tc.toward_deg), tc.period_s, flood, tc.error_fraction
         )
 
     def __deepcopy__(self, memo: dict[int, object]) -> TidePrediction:
         # one prediction and one clock for every filter of a run, copies too (a net's
         # twin, navd/filter/mirror.py): the navigator sets the clock once for all
         return self
+
+    @property
+    def in_use(self) -> bool:
+        """Whether the filters follow the prediction (its clock is known)."""
+        return self.offset_s is not None
+
+    @property
+    def unknown_mps(self) -> float:
+        """The amplitude of the turning stream the prediction may miss."""
+        return self.error_fraction * self.amplitude_mps
 
     def velocity(self, t: float) -> tuple[float, float] | None:
         """The predicted stream (north, east, m/s) at filter time ``t``; None while the
