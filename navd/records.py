@@ -134,6 +134,17 @@ class SetBeacon:
 
 
 @dataclass(frozen=True, slots=True)
+class Clock:
+    """The GPS receiver's UTC at ``t``, from the time and date of a fix it says is valid
+    (RMC status A, gpsd's TPV with a fix): the time the crew's tidal prediction is read in
+    (navd/filter/tide.py), where the computer's own clock may be hours off (a board with no
+    real-time clock, at sea without a network)."""
+
+    t: float
+    utc_s: float  # seconds since the Unix epoch
+
+
+@dataclass(frozen=True, slots=True)
 class Resume:
     """navd started again and resumed the navigation state of its checkpoint.
 
@@ -194,6 +205,7 @@ Record = (
     | Reset
     | SetBeacon
     | Resume
+    | Clock
 )
 
 #: measurement-log ``type`` name of each record class
@@ -210,6 +222,7 @@ TYPE_NAMES: dict[type, str] = {
     Reset: "cmd_reset",
     SetBeacon: "cmd_beacon",
     Resume: "cmd_resume",
+    Clock: "clock",
 }
 
 
@@ -248,6 +261,10 @@ BOUNDS: dict[tuple[type, str], tuple[float, float]] = {
     (SetBeacon, "lat"): (-90.0, 90.0),
     (SetBeacon, "lon"): (-180.0, 180.0),
     (SetBeacon, "depth"): (0.0, 11_000.0),
+    # from 2010 to 2200: a receiver past a GPS week rollover its firmware predates
+    # reports a date 1024 weeks (19.6 years) early, about 2007 in these years, and is
+    # refused; the logs and captures of the years since stay readable
+    (Clock, "utc_s"): (1.2623e9, 7.26e9),
     (Resume, "age_s"): (0.0, 1e6),
     (Resume, "surface_bar"): (0.0, 2000.0),
     (Resume, "surface_alt"): (-1000.0, 10_000.0),

@@ -32,6 +32,7 @@ TYPES = [
     "range",
     "travel_time",
     "velocity",
+    "clock",
     "bogus",
 ]
 FIELDS = [
@@ -56,6 +57,7 @@ FIELDS = [
     "u",
     "v",
     "w",
+    "utc_s",
 ]
 records = st.fixed_dictionaries(
     {"type": st.sampled_from(TYPES), "t": st.one_of(st.floats(0, 100), st.floats(0, 1e6), numbers)},

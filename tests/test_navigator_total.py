@@ -17,6 +17,7 @@ from serialised import rows
 from navd.filter import Navigator
 from navd.records import (
     Attitude,
+    Clock,
     Depth,
     Gps,
     Heading,
@@ -51,7 +52,7 @@ opt_pos = st.one_of(st.none(), near)
 
 @st.composite
 def record(draw: st.DrawFn, t: float) -> object:
-    kind = draw(st.integers(0, 12))
+    kind = draw(st.integers(0, 13))
     if kind == 0:
         return Heading(t, draw(small))
     if kind == 1:
@@ -107,6 +108,9 @@ def record(draw: st.DrawFn, t: float) -> object:
             None,
             draw(st.one_of(st.none(), st.floats(-1.0, 50.0))),
         )
+    if kind == 12:
+        # the receiver's UTC: hours off the computer's, a rollover's 2007, nonsense
+        return Clock(t, 1460647200.0 + draw(st.one_of(small, st.floats(-1e9, 1e9))))
     return Reset(t)
 
 

@@ -8,8 +8,10 @@ any read size, at the position gpsd decodes, with the height for what it is.
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -157,31 +159,66 @@ def test_a_fix_naming_no_satellite_and_no_hdop_is_not_full_weight():
     assert fix_std(3.0, None, 1, None, 10.0) == pytest.approx(3.0)  # a log without sats
 
 
+class _Host:
+    """What a device needs of the daemon: its vitals, a clock, and where records go."""
+
+    def __init__(self) -> None:
+        from navd.daemon.health import Vitals
+
+        self.vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
+        self.fed: list[object] = []
+
+    def clock(self) -> float:
+        import time
+
+        return time.monotonic()
+
+    def feed(self, rec: object) -> None:
+        self.fed.append(rec)
+
+    def logged(self, name: str, decoder: object) -> object:
+        return decoder
+
+
+def _receiver() -> tuple[_Host, Any]:
+    from navd.daemon.devices.gps import GpsReceiver
+    from navd.settings import GpsDevice
+
+    host = _Host()
+    return host, GpsReceiver(GpsDevice(port="/dev/null"), host)  # type: ignore[arg-type]
+
+
 def test_what_the_receiver_says_beyond_fixes_is_counted_in_health():
     import time
 
-    from navd.daemon.devices.gps import GpsReceiver
-    from navd.daemon.health import Vitals
-    from navd.settings import GpsDevice
-
-    class Host:
-        vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
-        fed: list = []
-
-        def clock(self) -> float:
-            return time.monotonic()
-
-        def feed(self, rec) -> None:
-            self.fed.append(rec)
-
-        def logged(self, name: str, decoder: object) -> object:
-            return decoder
-
-    host = Host()
-    dev = GpsReceiver(GpsDevice(port="/dev/null"), host)  # type: ignore[arg-type]
+    host, dev = _receiver()
     data = (Path(__file__).parent / "data" / "gpsd" / "sirfstarv-nmea.log").read_bytes()
     for rec in dev.decoder.feed(data, 0.0):
         dev.handle(rec)
     h = dev.health(time.monotonic())
     assert h.decode_reasons["duplicate_epoch"] == 59  # GL's GGA of each epoch
     assert sum(isinstance(r, Gps) and r.lat is not None for r in host.fed) == 59
+
+
+def test_the_receiver_s_utc_reaches_the_navigator_once_a_minute():
+    """A real receiver's valid RMCs give the tidal prediction's clock (navd/records.py,
+    ``Clock``): at the first, as the sentence says it, and then once a minute."""
+    import datetime as dt
+
+    from navd.daemon.devices.gps import CLOCK_EVERY_S
+    from navd.records import Clock
+
+    host, dev = _receiver()
+    lines = (Path(__file__).parent / "data" / "gpsd" / "sirfstarv-nmea.log").read_bytes()
+    rmc = [ln for ln in lines.splitlines(keepends=True) if b"RMC," in ln]
+    t = 0.0
+    for _ in range(3):  # the capture's minute of sentences, three times over, 1 s apart
+        for ln in rmc:
+            t += 1.0
+            for rec in dev.decoder.feed(ln, t):
+                dev.handle(rec)
+    clocks = [r for r in host.fed if isinstance(r, Clock)]
+    first = dt.datetime(2019, 2, 5, 2, 9, 35, tzinfo=dt.UTC)  # its first RMC, status A
+    assert clocks[0] == Clock(1.0, first.timestamp())
+    assert len(clocks) == math.ceil(t / CLOCK_EVERY_S)
+    assert all(b.t - a.t >= CLOCK_EVERY_S for a, b in zip(clocks, clocks[1:], strict=False))

@@ -22,6 +22,7 @@ from navd.filter.ekf import RangeEKF
 from navd.filter.tide import TidePrediction
 from navd.formats.mlog import log_epoch
 from navd.formats.truth import read_truth
+from navd.records import Clock
 from navd.settings import ConfigError, NoiseConfig, TideConfig, config_from_dict
 from navd.utc import utc_seconds
 
@@ -223,3 +224,71 @@ def test_the_config_bounds_a_prediction_s_error() -> None:
         with pytest.raises(ConfigError) as exc:
             config_from_dict({"navigation": {"tide": {**tide, "error_fraction": bad}}})
         assert "navigation.tide.error_fraction" in str(exc.value) and "\n" not in str(exc.value)
+
+
+def _nav_with_tide() -> Navigator:
+    cfg = config_from_dict(
+        {"navigation": {"tide": {"amplitude_mps": 0.5, "toward_deg": 90, "max_flood_utc": FLOOD}}}
+    )
+    return Navigator(cfg)
+
+
+def test_the_receiver_s_utc_sets_a_clock_that_is_off() -> None:
+    """The computer's clock starts five hours off (a board with no real-time clock): the
+    GPS receiver's UTC is the prediction's clock from its first valid fix; a clock off by
+    less than a minute stands."""
+    nav = _nav_with_tide()
+    tide = nav.tide
+    assert tide is not None
+    nav.set_clock(FLOOD_S - 5 * 3600.0)
+    nav.feed(Clock(10.0, FLOOD_S + 10.0))  # the receiver: t = 0 was the maximum flood
+    assert tide.offset_s == pytest.approx(FLOOD_S)
+    assert nav.counters["tide_clock_corrected"] == 1
+    nav.feed(Clock(70.0, FLOOD_S + 70.0 + 30.0))  # 30 s apart: the clock stands
+    assert tide.offset_s == pytest.approx(FLOOD_S) and nav.counters["tide_clock_corrected"] == 1
+    nav.feed(Clock(80.0, 1.0e9))  # 2001: a receiver past a week rollover, refused
+    assert tide.offset_s == pytest.approx(FLOOD_S) and nav.counters["skipped_implausible"] == 1
+    unset = _nav_with_tide()
+    unset.feed(Clock(5.0, FLOOD_S + 5.0))  # no clock at all before: the receiver's
+    assert unset.tide is not None and unset.tide.offset_s == pytest.approx(FLOOD_S)
+    assert unset.counters["tide_clock_from_gps"] == 1
+
+
+def test_a_clock_set_again_does_not_move_the_current() -> None:
+    """The current the data taught stays when the clock is set again; from then on the
+    prediction's changes are read on the new clock."""
+    tp = _tide()
+    tp.offset_s = FLOOD_S - 900.0  # a quarter period off: the stream at its turn
+    f = RangeEKF(NoiseConfig(current_walk_mps_per_sqrt_s=0.0), 9.0, 4.0, 3)
+    f.tide = tp
+    f.initialise(math.radians(37.1), math.radians(-76.4), 5.0, 0.0)
+    f.predict(0.1, 0.1, 0.0, 1.0, 0.0)
+    taught = f.x[2:4].copy()
+    tp.offset_s = FLOOD_S  # the receiver's clock: the maximum flood now
+    f.predict(0.2, 0.1, 0.0, 1.0, 0.0)
+    assert f.x[2:4] == pytest.approx(taught, abs=1e-12)
+    v0 = tp.velocity(0.15)
+    f.predict(60.0, 59.8, 0.0, 1.0, 0.0)
+    v1 = tp.velocity(60.0 - 0.5 * 59.8)
+    assert v0 is not None and v1 is not None
+    assert f.x[2:4] == pytest.approx(taught + np.subtract(v1, v0), abs=1e-12)
+
+
+def test_a_rotated_log_keeps_the_receiver_s_clock_and_a_restart_does_not() -> None:
+    """Replay sets each log file's clock; the next file of the same daemon gives the same
+    one, and the receiver's correction stands, as it did live.  A restarted daemon (a
+    checkpoint's resume) starts again from the computer's clock, as live."""
+    from navd.records import Resume
+
+    nav = _nav_with_tide()
+    tide = nav.tide
+    assert tide is not None
+    off = FLOOD_S - 5 * 3600.0
+    nav.set_clock(off)
+    nav.feed(Clock(10.0, FLOOD_S + 10.0))
+    nav.set_clock(off + 0.002)  # the next file's header, rounded
+    assert tide.offset_s == pytest.approx(FLOOD_S)
+    x = tuple(float(v) for v in nav.filter.x)
+    P = tuple(float(v) for v in np.eye(len(x)).ravel())
+    nav.feed(Resume(20.0, "default", x, P, 5.0))
+    assert tide.offset_s == pytest.approx(off)

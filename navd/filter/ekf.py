@@ -60,6 +60,7 @@ class RangeEKF(RangeFusion):
         nz = self.noise
         # the current's prior mean: the crew's tidal prediction where there is one
         self._tide_v = self._tide_at(t)
+        self._tide_clock = None if self.tide is None else self.tide.offset_s
         cn, ce = self._tide_v or (0.0, 0.0)
         self.x = np.array([lat, lon, cn, ce, 0.0, 1.0, 0.0, 0.0])
         self.P = np.diag(

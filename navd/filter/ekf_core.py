@@ -53,6 +53,7 @@ class EkfCore:
         # none unless the owner sets one), and the stream it last put into the state
         self.tide: TidePrediction | None = None
         self._tide_v: tuple[float, float] | None = None
+        self._tide_clock: float | None = None  # the prediction's clock when _tide_v was read
         self.t = 0.0
         self.track = RecentTrack(WINDOW_S)
         # how the water-relative velocity (north, east) moves with heading bias and speed
@@ -88,13 +89,15 @@ class EkfCore:
     def _follow_tide(self, t: float) -> None:
         """Move the current by the predicted stream's change since it was last put in
         (``t``: the middle of the step about to be taken, where the step reads the
-        current).  The first prediction, or the first after a restart, is only noted:
-        the state then already holds the current there."""
+        current).  The first prediction, the first after a restart and the first after
+        its clock was set again (the GPS receiver's UTC, navd/filter/navigator.py) are only
+        noted: the state then already holds the current there, as the data taught it."""
         v = self._tide_at(t)
-        if v is None:
+        if v is None or self.tide is None:
             return
-        last = self._tide_v
-        self._tide_v = v
+        clock = self.tide.offset_s
+        last = self._tide_v if clock == self._tide_clock else None
+        self._tide_v, self._tide_clock = v, clock
         if last is not None:
             self.x[2] += v[0] - last[0]
             self.x[3] += v[1] - last[1]

@@ -25,6 +25,7 @@ from navd.records import (
     MAX_BEACONS,
     MAX_LATE_S,
     Attitude,
+    Clock,
     Depth,
     Gps,
     Heading,
@@ -44,6 +45,11 @@ from navd.schema import Estimate, Output, finite
 from navd.settings import Beacon
 
 _TICK_SLACK_S = 1e-6  # far below a tick (0.01 s at 100 Hz), far above float rounding
+#: a clock this far off moves the tidal prediction by at most 2 pi 60 / 44714 (0.8 %) of
+#: its speed; closer, the clock it has stands (a receiver's time lags its fix a little)
+CLOCK_TOLERANCE_S = 60.0
+#: two clocks the computer gave this close are one (a log header's time is rounded)
+SAME_CLOCK_S = 1.0
 
 
 class Navigator(Fusion, Resuming):
@@ -75,6 +81,9 @@ class Navigator(Fusion, Resuming):
             # the decoders and the log reader refuse these already; records made by
             # other callers get the same test, so no value can blow up a step
             self.counters["skipped_implausible"] += 1
+            return []
+        if isinstance(rec, Clock):
+            self._on_clock(rec)  # a time, not a measurement: no step of the filter
             return []
         t = rec.t
         if self._t_filter is not None and t < self._t_filter:
@@ -128,9 +137,33 @@ class Navigator(Fusion, Resuming):
         daemon's clock), which the crew's tidal prediction is given in
         (navd/filter/tide.py); None, or a value that is not finite: not known, and the
         prediction waits."""
-        if self.tide is not None:
-            ok = utc_at_zero is not None and math.isfinite(utc_at_zero)
-            self.tide.offset_s = utc_at_zero if ok else None
+        ok = utc_at_zero is not None and math.isfinite(utc_at_zero)
+        given = utc_at_zero if ok else None
+        before, self.computer_clock = self.computer_clock, given
+        if self.tide is None:
+            return
+        if given is not None and before is not None and abs(given - before) < SAME_CLOCK_S:
+            # the same clock again (a rotated log's next file, the same daemon): what the
+            # GPS receiver said of it stands, as it did in the daemon
+            return
+        self.tide.offset_s = given
+
+    def _on_clock(self, rec: Clock) -> None:
+        """The GPS receiver's UTC: the tidal prediction's clock, where the one it had
+        (the computer's, the log's header) is unknown or off by more than
+        ``CLOCK_TOLERANCE_S``.  The receiver's is the one to trust: a board without a
+        real-time clock, at sea without a network, may start hours off."""
+        tide = self.tide
+        if tide is None:
+            return
+        at_zero = rec.utc_s - rec.t
+        if tide.offset_s is None:
+            self.counters["tide_clock_from_gps"] += 1
+        elif abs(tide.offset_s - at_zero) > CLOCK_TOLERANCE_S:
+            self.counters["tide_clock_corrected"] += 1
+        else:
+            return
+        tide.offset_s = at_zero
 
     def advance(self, t: float) -> list[Output]:
         """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,

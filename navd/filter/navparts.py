@@ -64,6 +64,9 @@ class NavParts:
         # the crew's tidal prediction, with the clock the navigator is told (a restart's
         # fresh filters keep both)
         self.tide = TidePrediction.from_config(cfg.navigation.tide)
+        # UTC at t = 0 by the computer's clock (the daemon's, a log's header): what a new
+        # process starts the prediction with, until the GPS receiver says otherwise
+        self.computer_clock: float | None = None
         self._fresh()
 
     def _fresh(self) -> None:
@@ -71,6 +74,8 @@ class NavParts:
         smoother's finished segments are the run's, and stay)."""
         cfg = self.cfg
         nav = self.nav
+        if self.tide is not None:
+            self.tide.offset_s = self.computer_clock
         self.filter: NavFilter = make_filter(cfg, self.tide)
         if self.smoothing is not None:
             self.smoothing.start(self.filter)

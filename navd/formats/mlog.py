@@ -24,6 +24,7 @@ from navd.records import (
     MAX_LATE_S,
     TYPE_NAMES,
     Attitude,
+    Clock,
     Depth,
     Gps,
     Heading,
@@ -214,6 +215,7 @@ _PARSERS: dict[str, Callable[[JsonObject, float], Record]] = {
     "travel_time": _parse_tt,
     "velocity": lambda o, t: Velocity(t, _num(o, "u"), _num(o, "v"), _num(o, "w")),
     "cmd_reset": lambda o, t: Reset(t),
+    "clock": lambda o, t: Clock(t, _num(o, "utc_s")),
     "cmd_beacon": lambda o, t: SetBeacon(
         t,
         _beacon_name(o),
