@@ -176,6 +176,9 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     check = replay_against_live([logfile], mission_dir / "navd.yaml", mission_dir / "replay.jsonl")
     assert check.returncode == 0, check.stderr
     assert [o.get("type") for o in read_jsonl(logfile)].count("cmd_reset") == 1
+    # the receiver's UTC, the tidal prediction's clock, is in the log for the replay
+    clocks = [o for o in read_jsonl(logfile) if o.get("type") == "clock"]
+    assert clocks and all(b["t"] - a["t"] >= 60.0 for a, b in zip(clocks, clocks[1:], strict=False))
     assert check.common >= check.live - 1
     assert check.worst <= 1e-9
 

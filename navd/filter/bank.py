@@ -48,9 +48,8 @@ filter's own: the config belief may still widen it (its mean elsewhere), not nar
 its covariance came of the refuted priors.  Where both beliefs put the vehicle in one
 place, the mixture drew the ellipse about that place nearly as narrow as those priors, and
 just after a dive, with the heading bias still untested, told the autopilot ``ok`` while
-15 m off (BENCHMARKS.md, "A refuted belief's narrowness").
-A right config's own estimate stays well inside its priors, since its posterior is
-narrower than them.
+15 m off (BENCHMARKS.md, "A refuted belief's narrowness").  A right config's own
+estimate stays well inside its priors, since its posterior is narrower than them.
 
 The uncalibrated belief can also be lost on its own.  Its wide priors let one range that
 reads a few metres short just after the dive (the boat's GPS wandering) move its speed

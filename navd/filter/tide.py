@@ -26,7 +26,8 @@ the site's strongest (navd/filter/bank.py), once the prediction is followed.
 
 The prediction is in UTC; the filter's time is the records' (monotonic seconds live,
 the log's seconds in replay).  The navigator learns the offset between them from the
-log's header or the daemon's clock (``offset_s``); until then the prediction is not used.
+log's header or the daemon's clock, and from the GPS receiver's UTC where those are off
+(``offset_s``; navd/filter/navigator.py); until then the prediction is not used.
 
 Sans I/O and total: a velocity that is not finite is no prediction (``None``).
 """
