@@ -38,7 +38,14 @@ from typing import Any
 
 from bench.common import replay_mission, report
 from navd.analysis.jobs import default_jobs, run_all
-from navd.analysis.score import REACQUIRED_S, AgainstBound, Score, against_bound, score
+from navd.analysis.score import (
+    CHI2_2DOF_99,
+    REACQUIRED_S,
+    AgainstBound,
+    Score,
+    against_bound,
+    score,
+)
 from navd.formats.truth import TruthSample, read_truth
 from navd.hil.bound import MATCHED_PARTS, matched_config, mission_bound
 from navd.hil.scenario import scenario_from_dict
@@ -574,7 +581,8 @@ def table(results: list[Result], n: int, first: int = 1) -> str:
         for r in bad[:20]:
             d = r.default
             what = r.error or (
-                f"final {d.surfacing_m:.0f} m, current error {d.current_rms_mps:.2f} m/s"
+                f"final {d.surfacing_m:.0f} m ({_known(d)}), current error "
+                f"{d.current_rms_mps:.2f} m/s"
                 if d
                 else "no output"
             )
@@ -584,6 +592,13 @@ def table(results: list[Result], n: int, first: int = 1) -> str:
                 f"drops {r.draw.drops:.0%}): {what}"
             )
     return "\n".join(lines)
+
+
+def _known(d: Score) -> str:
+    """Whether the last estimate knew its error: inside or outside its 99 % ellipse, and
+    what integrity said."""
+    where = "inside" if d.surfacing_d2 <= CHI2_2DOF_99 else "outside"
+    return f"{where} its 99 % ellipse, integrity {d.surfacing_integrity or 'unsaid'}"
 
 
 def redraw(seed: int, n: int, jobs: int, scheduler: str | None) -> int:

@@ -64,6 +64,9 @@ def test_the_ellipse_after_a_reacquisition_is_scored_on_its_own() -> None:
     # no re-acquisition: nothing to score
     none = score([o for o in outs if isinstance(o, Estimate)], truth)
     assert none.reacquired_estimates == 0 and math.isnan(none.reacquired_inside95)
+    # the last submerged estimate, 3 m off in 5 m of std: what it knew of its error
+    assert math.isclose(s.surfacing_d2, (3.0 / 5.0) ** 2, rel_tol=1e-3)
+    assert s.surfacing_integrity == "ok"
 
 
 def test_the_published_ellipse_is_set_beside_the_bounds() -> None:

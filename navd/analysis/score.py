@@ -58,6 +58,11 @@ class Score:
     # time, per axis (the normalised estimation error squared: 1 for an ellipse the size
     # of the error, below it wider)
     nees: float = math.nan
+    # the last submerged estimate: its error's squared Mahalanobis distance in its own
+    # ellipse, and what integrity said of it (a large error the estimate knew of is not
+    # the same as one it was sure it did not have)
+    surfacing_d2: float = math.nan
+    surfacing_integrity: str = ""
 
 
 def replies_to_reacquire(ranges: list[RangeDecision]) -> list[int]:
@@ -218,7 +223,7 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
     errs, dr_errs, cur_errs, inside, fix_errs = [], [], [], [], []
     d2s: list[float] = []
     ok_inside: list[bool] = []
-    last_sub: tuple[float, float] | None = None
+    last_sub: tuple[float, float, float, str] | None = None
     estimates, ranges = split_outputs(outputs)
     reacquired_at = [r.t for r in ranges if r.reason == "gate_reacquire"]
     after: list[bool] = []
@@ -243,7 +248,7 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
             dr_errs.append(dre)
         if o.fix_lat is not None and o.fix_lon is not None:
             fix_errs.append(math.hypot(*_ne_error(o.fix_lat, o.fix_lon, tr.lat, tr.lon)))
-        last_sub = (e, dre if dre is not None else math.nan)
+        last_sub = (e, dre if dre is not None else math.nan, d2, o.integrity or "")
     reacq = replies_to_reacquire(ranges)
     if not errs:
         nan = math.nan
@@ -268,4 +273,6 @@ def score(outputs: Iterable[Output], truth: Sequence[TruthSample]) -> Score:
         reacquired_inside95=float(np.mean(after)) if after else math.nan,
         reacquired_estimates=len(after),
         nees=float(np.mean(d2s)) / 2.0,
+        surfacing_d2=last_sub[2] if last_sub else math.nan,
+        surfacing_integrity=last_sub[3] if last_sub else "",
     )
