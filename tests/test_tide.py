@@ -103,11 +103,15 @@ def _offset_m(a: RangeEKF, b: RangeEKF) -> tuple[float, float]:
     return e, n
 
 
-def test_the_navigator_gives_every_filter_of_a_run_the_one_clock() -> None:
+def _nav_with_tide() -> Navigator:
     cfg = config_from_dict(
         {"navigation": {"tide": {"amplitude_mps": 0.5, "toward_deg": 90, "max_flood_utc": FLOOD}}}
     )
-    nav = Navigator(cfg)
+    return Navigator(cfg)
+
+
+def test_the_navigator_gives_every_filter_of_a_run_the_one_clock() -> None:
+    nav = _nav_with_tide()
     nav.set_clock(FLOOD_S)
     tide = nav.tide
     assert tide is not None and tide.velocity(0.0) == pytest.approx((0.0, 0.5), abs=1e-12)
@@ -224,13 +228,6 @@ def test_the_config_bounds_a_prediction_s_error() -> None:
         with pytest.raises(ConfigError) as exc:
             config_from_dict({"navigation": {"tide": {**tide, "error_fraction": bad}}})
         assert "navigation.tide.error_fraction" in str(exc.value) and "\n" not in str(exc.value)
-
-
-def _nav_with_tide() -> Navigator:
-    cfg = config_from_dict(
-        {"navigation": {"tide": {"amplitude_mps": 0.5, "toward_deg": 90, "max_flood_utc": FLOOD}}}
-    )
-    return Navigator(cfg)
 
 
 def test_the_receiver_s_utc_sets_a_clock_that_is_off() -> None:
