@@ -34,3 +34,25 @@ def current_walk(dt: float, q2: float) -> tuple[np.ndarray, np.ndarray]:
         Q[i, i + 2] = Q[i + 2, i] = q2 * dt**2 / 2.0
         Q[i + 2, i + 2] = q2 * dt
     return F, Q
+
+
+class DeviceHost:
+    """What a device task needs of the daemon (navd/daemon/devices/base.py, ``Host``): its
+    vitals, a clock, where records go, and no log (the decoder as it is)."""
+
+    def __init__(self) -> None:
+        from navd.daemon.health import Vitals
+
+        self.vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
+        self.fed: list[object] = []
+
+    def clock(self) -> float:
+        import time
+
+        return time.monotonic()
+
+    def feed(self, rec: object) -> None:
+        self.fed.append(rec)
+
+    def logged(self, name: str, decoder: object) -> object:
+        return decoder

@@ -14,9 +14,9 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import DeviceHost
 
 from navd.daemon.devices.gps import GpsReceiver
-from navd.daemon.health import Vitals
 from navd.drivers.gps import NmeaDecoder
 from navd.drivers.gpsd import GpsdDecoder
 from navd.drivers.transport import SerialTransport
@@ -32,21 +32,6 @@ pytestmark = pytest.mark.skipif(
 )
 
 
-class _Host:
-    def __init__(self) -> None:
-        self.vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
-        self.fed: list[object] = []
-
-    def clock(self) -> float:
-        return time.monotonic()
-
-    def feed(self, rec: object) -> None:
-        self.fed.append(rec)
-
-    def logged(self, name: str, decoder: object) -> object:
-        return decoder  # no log here: the decoder as it is
-
-
 def test_gpsd_source_gives_the_serial_decoders_fixes() -> None:
     port = free_port()
     fake = subprocess.Popen(
@@ -54,7 +39,7 @@ def test_gpsd_source_gives_the_serial_decoders_fixes() -> None:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    host = _Host()
+    host = DeviceHost()
     cfg = GpsDevice(source="gpsd", gpsd_port=port)
     dev = GpsReceiver(cfg, host)  # type: ignore[arg-type]
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import DeviceHost
 
 from navd.drivers.gps import NmeaDecoder
 from navd.records import Gps
@@ -159,32 +160,11 @@ def test_a_fix_naming_no_satellite_and_no_hdop_is_not_full_weight():
     assert fix_std(3.0, None, 1, None, 10.0) == pytest.approx(3.0)  # a log without sats
 
 
-class _Host:
-    """What a device needs of the daemon: its vitals, a clock, and where records go."""
-
-    def __init__(self) -> None:
-        from navd.daemon.health import Vitals
-
-        self.vitals = Vitals(rate_hz=10.0, ping_interval_s=10.0, stale_s=1.0)
-        self.fed: list[object] = []
-
-    def clock(self) -> float:
-        import time
-
-        return time.monotonic()
-
-    def feed(self, rec: object) -> None:
-        self.fed.append(rec)
-
-    def logged(self, name: str, decoder: object) -> object:
-        return decoder
-
-
-def _receiver() -> tuple[_Host, Any]:
+def _receiver() -> tuple[DeviceHost, Any]:
     from navd.daemon.devices.gps import GpsReceiver
     from navd.settings import GpsDevice
 
-    host = _Host()
+    host = DeviceHost()
     return host, GpsReceiver(GpsDevice(port="/dev/null"), host)  # type: ignore[arg-type]
 
 
