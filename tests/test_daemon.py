@@ -26,14 +26,14 @@ from navd.hil.bench_vehicle import BenchVehicle, replay_against_live
 class Mission:
     """navd-hil and navd run as the vehicle would run them, and a zenoh peer watching."""
 
-    def __init__(self, d: Path, faults: list | None = None) -> None:
+    def __init__(self, d: Path, faults: list | None = None, config: dict | None = None) -> None:
         self.dir = d
         fault_file = None
         if faults:
             fault_file = d.parent / "faults.yaml"
             fault_file.write_text(json.dumps(faults))
         stderr = open(d.parent / "navd.stderr", "w")  # noqa: SIM115 (the daemon's, kept open)
-        self.vehicle = BenchVehicle(d, navd_stderr=stderr, faults=fault_file)
+        self.vehicle = BenchVehicle(d, navd_stderr=stderr, faults=fault_file, config=config)
         self.navd = self.vehicle.navd
         self.cfg = load_config(self.vehicle.config)
         self.t0 = self.vehicle.t0_monotonic
@@ -85,8 +85,13 @@ def mission_dir(tmp_path: Path) -> Path:
     return tmp_path / "vehicle"
 
 
+# A weak tidal prediction: the emulated receiver's UTC (2016) is years off the computer's,
+# so the daemon must take the receiver's clock, and its replay the same from the log
+TIDE = {"amplitude_mps": 0.05, "toward_deg": 30.0, "max_flood_utc": "2016-01-08T15:00:00Z"}
+
+
 def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> None:
-    m = Mission(mission_dir)
+    m = Mission(mission_dir, config={"navigation": {"tide": TIDE}})
     try:
         # the operator resets the filter at the surface; the log keeps the command, so
         # the replay below only matches the live estimates if it re-applies it
@@ -154,6 +159,8 @@ def test_live_mission_over_ptys_and_zenoh_replays_exactly(mission_dir: Path) -> 
     assert last["devices"]["ahrs"]["hard_iron"] == [0.0, 0.0, 0.0]  # never calibrated
     assert last["esc"]["battery_v"] == pytest.approx(14.8, abs=0.1)
     assert last["degraded"] == [] or all("integrity" in p for p in last["degraded"])
+    # the tidal prediction reads the receiver's clock, not the computer's
+    assert last["filter"]["tide_clock_corrected"] == 1
 
     # position against the simulator's truth, within the filter's own 3 sigma
     truth = {round(s["t"], 1): s for s in read_jsonl(mission_dir / "truth.jsonl")}

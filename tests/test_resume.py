@@ -136,7 +136,12 @@ def test_a_restart_while_submerged_resumes_within_5_s_and_replays(tmp_path: Path
     """kill -9 while submerged, started again as systemd would: the real daemon and emulators."""
     d = tmp_path / "vehicle"
     stderr = open(tmp_path / "navd.stderr", "w")  # noqa: SIM115 (the daemons', kept open)
-    v = BenchVehicle(d, navd_stderr=stderr, state_dir=tmp_path / "state")
+    # with a tidal prediction whose clock the receiver corrects (tests/test_daemon.py): the
+    # restarted daemon starts from the computer's clock again, and so must the replay
+    tide = {"amplitude_mps": 0.05, "max_flood_utc": "2016-01-08T15:00:00Z"}
+    v = BenchVehicle(
+        d, navd_stderr=stderr, state_dir=tmp_path / "state", config={"navigation": {"tide": tide}}
+    )
     try:
         while time.monotonic() - v.t0_monotonic < T_KILL:
             assert v.navd.poll() is None, (tmp_path / "navd.stderr").read_text()

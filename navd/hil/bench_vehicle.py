@@ -14,9 +14,13 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, cast
 
+import yaml
+
+from navd.files import load_yaml
 from navd.formats import jsonlines
+from navd.settings import deep_merge
 
 BIN = Path(sys.executable).parent
 _COMPARED = ("lat", "lon", "std_n", "std_e", "current_n", "current_e")
@@ -83,9 +87,12 @@ class BenchVehicle:
         connect: list[str] | None = None,
         state_dir: Path | None = None,
         profile: Path | None = None,
+        config: dict[str, Any] | None = None,
     ) -> None:
         """``state_dir``: keep the daemon's checkpoint there (systemd's StateDirectory);
-        ``profile``: run the daemon under cProfile, its statistics written there at stop."""
+        ``profile``: run the daemon under cProfile, its statistics written there at stop;
+        ``config``: keys merged into the vehicle's ``navd.yaml`` before the daemon starts
+        (a replay of its log then reads the same file)."""
         self.profile = profile
         self.dir = d
         self.config = d / "navd.yaml"
@@ -107,6 +114,9 @@ class BenchVehicle:
             if not (d / "clock.json").exists():
                 raise RuntimeError(f"navd-hil did not start: {self.banner}")
             self.t0_monotonic = jsonlines.loads((d / "clock.json").read_bytes())["t0_monotonic"]
+            if config:
+                merged = deep_merge(cast(dict[str, object], load_yaml(self.config)), config)
+                self.config.write_text(yaml.safe_dump(merged))
             if state_dir is not None:
                 state_dir.mkdir(parents=True, exist_ok=True)
                 site = d / "state.yaml"
