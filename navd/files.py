@@ -1,5 +1,5 @@
 """The one way navd opens a file it did not write: configs, overlays, site files, the
-zenoh config, scenario and fault files, and logs.
+zenoh config, scenario and fault files, and logs; and the way it writes a file whole.
 
 A name in a config can point anywhere: at a device (``/dev/zero`` never ends), a
 FIFO (opening it blocks until a writer comes), a directory, or a secret
@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
@@ -33,6 +35,7 @@ __all__ = [
     "read_text",
     "parse_yaml",
     "load_yaml",
+    "written_whole",
 ]
 
 #: a config, overlay, site or zenoh file larger than this is not one
@@ -219,3 +222,29 @@ def load_yaml(path: str | Path, max_bytes: int = MAX_CONFIG_BYTES) -> object:
         return parse_yaml(text)
     except yaml.YAMLError as exc:
         raise FileRefused(f"{path}: {yaml_error_line(exc)}") from None
+
+
+@contextmanager
+def written_whole(path: str | Path) -> Iterator[IO[str]]:
+    """A text file to write whole.  A regular file, or a new one, is written beside itself
+    and renamed over the old at the end, so that no reader sees half of it and a failure
+    leaves the old one.  A device, a pipe or a terminal (``/dev/null``, ``/dev/stdout``, a
+    FIFO) is written as it is: a file renamed over it would replace it, and as root that
+    replaces ``/dev/null`` itself."""
+    out = Path(path)
+    try:
+        regular = stat.S_ISREG(out.stat().st_mode)
+    except OSError:
+        regular = True  # nothing there (or a dangling link): a new file
+    if not regular:
+        with out.open("w", encoding="utf-8") as fh:
+            yield fh
+        return
+    tmp = out.with_name(out.name + ".part")
+    try:
+        with tmp.open("w", encoding="utf-8") as fh:
+            yield fh
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # stopped part way: nothing left behind
+        raise
+    tmp.replace(out)

@@ -259,3 +259,40 @@ def test_mutated_logs_never_raise_never_hang_and_lose_only_what_they_touch(tmp_p
     kept = {(type(r).__name__, r.t) for r in recs}
     lost = sum(1 for r in clean if (type(r).__name__, r.t) not in kept)
     assert lost <= touched + HOLD_LINES * len(muts)
+
+
+def _tiny_log(path: Path) -> Path:
+    lines = [{"format": "navd-measurements", "version": 1, "start_utc": "2016-01-08T15:04:05Z"}]
+    lines += [
+        {"type": "gps", "t": 0.5 * k, "lat": 37.05, "lon": -80.66, "alt": 0.0, "fix": 1}
+        for k in range(20)
+    ]
+    path.write_text("".join(jsonlines.dumps_line(o) for o in lines))
+    return path
+
+
+def test_replay_writes_into_a_device_or_a_pipe_and_never_over_it(tmp_path: Path) -> None:
+    """`--out /dev/null` (here through a link to it) or a FIFO is written as it is: a file
+    renamed over it would replace it, and as root that replaced /dev/null itself."""
+    import stat
+    import threading
+
+    from navd.analysis.replay import replay
+
+    log = _tiny_log(tmp_path / "m.jsonl")
+    sink = tmp_path / "sink"
+    sink.symlink_to("/dev/null")
+    replay(log, config_from_dict({}), sink, err=open(os.devnull, "w"))  # noqa: SIM115
+    assert sink.is_symlink() and os.readlink(sink) == "/dev/null"
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    assert not (tmp_path / "sink.part").exists()
+
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(pipe.read_bytes()), daemon=True)
+    reader.start()
+    replay(log, config_from_dict({}), pipe, err=open(os.devnull, "w"))  # noqa: SIM115
+    reader.join(timeout=30)
+    assert stat.S_ISFIFO(os.lstat(pipe).st_mode)
+    assert got and b"estimate" in got[0]  # the pipe's reader had the outputs

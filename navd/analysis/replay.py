@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
+from navd.files import written_whole
 from navd.filter import Navigator
 from navd.formats import jsonlines
 from navd.formats.mlog import LogError, MeasurementLog, MeasurementStream, Skipped, log_epoch
@@ -195,17 +196,12 @@ def replay(
     nav = Navigator(cfg, keep_history=smooth)
     logs = _Logs(input_path if isinstance(input_path, list) else [input_path], strict, err, nav)
     out = Path(out_path)
-    tmp = out.with_name(out.name + ".part")
     estimates = 0
-    try:
-        with tmp.open("w", encoding="utf-8") as fh:
-            for o in _replayed(nav, logs, smooth):
-                estimates += isinstance(o, Estimate)
-                fh.write(jsonlines.dumps_line(to_dict(o)))
-    except BaseException:
-        tmp.unlink(missing_ok=True)  # a strict replay stopped by a bad line leaves nothing
-        raise
-    tmp.replace(out)
+    # a strict replay stopped by a bad line leaves nothing
+    with written_whole(out) as fh:
+        for o in _replayed(nav, logs, smooth):
+            estimates += isinstance(o, Estimate)
+            fh.write(jsonlines.dumps_line(to_dict(o)))
     for w in nav.warnings:
         print(f"warning: {w}", file=err)
     c = nav.counters
