@@ -45,6 +45,7 @@ from navd.daemon.status import every_second, health_of
 from navd.drivers.codec import Decoder, DecodeStats
 from navd.filter import Navigator
 from navd.formats.log import RecordLog
+from navd.formats.mlog import log_epoch
 from navd.records import MAX_BEACONS, Record, Reset, SetBeacon
 from navd.schema import Estimate, Health, Output, RangeDecision
 from navd.settings import Config
@@ -85,8 +86,9 @@ class Daemon:
         self.clock = clock
         self.notifier = notifier or Notifier()
         self.nav = Navigator(cfg)
-        # records are stamped with ``clock``; the tidal prediction is in UTC (the system
-        # clock, as the log's header takes it)
+        # records are stamped with ``clock``; the tidal prediction is in UTC: the system
+        # clock now, then exactly as each log file's header gives it, as a replay of the
+        # file reads it (navd.formats.mlog.log_epoch)
         self.nav.set_clock(time.time() - clock())
         lc = cfg.log
         self.rlog = RecordLog(
@@ -96,6 +98,7 @@ class Daemon:
             lc.raw_budget_bytes_per_s,
             lc.keep_mb,
         )
+        self.rlog.on_header = lambda header: self.nav.set_clock(log_epoch(dict(header)))
         self.publisher_factory = publisher_factory
         self.pub: Outlet | None = None
         where = checkpoint_dir(cfg, os.environ)

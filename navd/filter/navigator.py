@@ -142,11 +142,13 @@ class Navigator(Fusion, Resuming):
         before, self.computer_clock = self.computer_clock, given
         if self.tide is None:
             return
-        if given is not None and before is not None and abs(given - before) < SAME_CLOCK_S:
-            # the same clock again (a rotated log's next file, the same daemon): what the
-            # GPS receiver said of it stands, as it did in the daemon
+        same = given is not None and before is not None and abs(given - before) < SAME_CLOCK_S
+        if same and self.clock_from_gps:
+            # the same computer's clock again (a rotated log's next file, the same
+            # daemon): what the GPS receiver said of it stands, as it did in the daemon
             return
         self.tide.offset_s = given
+        self.clock_from_gps = False
 
     def _on_clock(self, rec: Clock) -> None:
         """The GPS receiver's UTC: the tidal prediction's clock, where the one it had
@@ -164,6 +166,7 @@ class Navigator(Fusion, Resuming):
         else:
             return
         tide.offset_s = at_zero
+        self.clock_from_gps = True
 
     def advance(self, t: float) -> list[Output]:
         """Run the ticks up to and including ``t`` (the daemon's clock, a tick of its log,

@@ -67,6 +67,7 @@ class NavParts:
         # UTC at t = 0 by the computer's clock (the daemon's, a log's header): what a new
         # process starts the prediction with, until the GPS receiver says otherwise
         self.computer_clock: float | None = None
+        self.clock_from_gps = False  # the prediction's clock is the receiver's
         self._fresh()
 
     def _fresh(self) -> None:
@@ -76,6 +77,7 @@ class NavParts:
         nav = self.nav
         if self.tide is not None:
             self.tide.offset_s = self.computer_clock
+        self.clock_from_gps = False
         self.filter: NavFilter = make_filter(cfg, self.tide)
         if self.smoothing is not None:
             self.smoothing.start(self.filter)

@@ -16,7 +16,7 @@ import contextlib
 import datetime as dt
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TextIO
 
@@ -48,6 +48,9 @@ class RecordLog:
         self.removed_files = 0
         self.fh: TextIO | None = None
         self.path: Path | None = None
+        # told each file's header as it is written (the daemon reads its clock from it,
+        # as a replay of the file will)
+        self.on_header: Callable[[Mapping[str, object]], None] | None = None
         self.size = 0
         self.files = 0
         self.lines = 0
@@ -78,6 +81,8 @@ class RecordLog:
         fh.write(line)
         fh.flush()
         self.fh, self.size = fh, len(line)
+        if self.on_header is not None:
+            self.on_header(header)
 
     def _write(self, obj: Mapping[str, object]) -> None:
         if self.fh is None:
