@@ -202,3 +202,37 @@ def test_the_receiver_s_utc_reaches_the_navigator_once_a_minute():
     assert clocks[0] == Clock(1.0, first.timestamp())
     assert len(clocks) == math.ceil(t / CLOCK_EVERY_S)
     assert all(b.t - a.t >= CLOCK_EVERY_S for a, b in zip(clocks, clocks[1:], strict=False))
+
+
+def _times(dec: object, data: bytes, size: int) -> list[object]:
+    from navd.drivers.gps import GpsTime
+
+    out: list[object] = []
+    for i in range(0, len(data), size):
+        out += [r for r in dec.feed(data[i : i + size], 0.0) if isinstance(r, GpsTime)]  # type: ignore[attr-defined]
+    return out
+
+
+@pytest.mark.parametrize("path", CORPUS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("size", [1, 16, 256, 4096])
+def test_every_receiver_time_reaches_the_clock_at_any_read_size(path: Path, size: int):
+    """The receivers' UTC, which the tidal prediction's clock is read from (navd/records.py,
+    ``Clock``): every RMC's and every time gpsd decoded from the same bytes (its ``.chk``),
+    the same at any read size, and gpsd's as gpsd wrote it."""
+    import datetime as dt
+
+    from navd.drivers.gpsd import GpsdDecoder
+
+    nmea = path.read_bytes()
+    whole = _times(NmeaDecoder(), nmea, len(nmea))
+    assert _times(NmeaDecoder(), nmea, size) == whole
+    chk = (path.parent / (path.name + ".chk")).read_bytes()
+    said = [
+        json.loads(ln)["time"]
+        for ln in chk.splitlines()
+        if b'"class":"TPV"' in ln and b'"time"' in ln
+    ]
+    got = _times(GpsdDecoder(), chk, size)
+    assert got == _times(GpsdDecoder(), chk, len(chk))
+    stamps = [g.utc for g in got]  # type: ignore[attr-defined]
+    assert stamps == [dt.datetime.fromisoformat(s.replace("Z", "+00:00")) for s in said]
