@@ -51,18 +51,19 @@ BEACON = (37.0510, -80.6600, 2.0)  # 110 m north of the start, 2 m deep
 
 
 def _submerged(
-    nav: Navigator, t0: float, t1: float, range_at: Callable[[float], float]
+    nav: Navigator, t0: float, t1: float, range_at: Callable[[float], float | None]
 ) -> list[dict]:
     """The vehicle at rest 5 m down, a reply from ``BEACON`` every 10 s after ``t0``
-    reading ``range_at(t)``."""
+    reading ``range_at(t)`` (None: that ping was lost)."""
     out: list[dict] = []
     t = t0
     while t < t1:
         out += nav.feed(Heading(t, 0.0))
         out += nav.feed(Rpm(t + 0.01, 0.0))
         out += nav.feed(Depth(t + 0.02, 5.0))
-        if abs(t % 10.0) < 1e-6 and t > t0:
-            out += nav.feed(Range(t + 0.05, t - 0.5, range_at(t), "udb", *BEACON))
+        reply = range_at(t) if abs(t % 10.0) < 1e-6 and t > t0 else None
+        if reply is not None:
+            out += nav.feed(Range(t + 0.05, t - 0.5, reply, "udb", *BEACON))
         t = round(t + 0.1, 1)
     return out
 
@@ -168,3 +169,44 @@ def test_a_range_refused_as_short_is_degraded_and_one_refused_as_long_is_not() -
         e["integrity"] == "degraded" and "short" in e["integrity_reason"] for e in short
     )
     assert all(e["integrity"] == "ok" for e in est if e["t"] > 90.2)
+
+
+def test_a_reply_after_a_gap_is_degraded_until_another_checks_it() -> None:
+    """After two minutes without a reply the gate is wide, and the first reply accepted
+    places the estimate along its line of sight almost alone.  A reflection 20 m long
+    passes that gate; the estimate it placed is ``degraded`` (not ``ok``) until a next
+    reply is accepted, and when the next true reply is then refused as short it stays
+    so.  A reply that was true is checked by the next, and ``ok`` returns."""
+    true_m = geodesy.ecef_distance(
+        math.radians(LAT0), math.radians(LON0), -5.0,
+        math.radians(BEACON[0]), math.radians(BEACON[1]), -BEACON[2],
+    )  # fmt: skip
+    for long_m, checked in ((20.0, False), (8.0, True)):
+        nav = Navigator(
+            config_from_dict(
+                {
+                    "navigation": {
+                        "speed": {"rpm_per_mps": 1000.0},
+                        "sound_speed": {"model": "fixed", "fixed_mps": 1500.0},
+                    }
+                }
+            )
+        )
+        _surface(nav, 0.0, 20.0)
+
+        def reply(t: float, long_m: float = long_m) -> float | None:
+            if 40.0 < t < 160.0:
+                return None  # two minutes of lost pings
+            return true_m + (long_m if round(t) == 160 else 0.0)
+
+        out = _submerged(nav, 20.0, 200.0, reply)
+        decided = {round(o["t"]): o for o in rows(out) if o["type"] == "range"}
+        assert decided[160]["accepted"] and decided[170]["accepted"] is checked
+        est = [o for o in rows(out) if o["type"] == "estimate"]
+        assert all(e["integrity"] == "ok" for e in est if 150.0 < e["t"] < 160.0)
+        placed = [e for e in est if 160.2 < e["t"] < 170.0]
+        assert placed and all(
+            e["integrity"] == "degraded" and "placed" in e["integrity_reason"] for e in placed
+        )
+        after = [e["integrity"] for e in est if 170.2 < e["t"] < 180.0]
+        assert after and all((i == "ok") is checked for i in after)

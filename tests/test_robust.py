@@ -113,3 +113,27 @@ def test_integrity_after_a_range_refused_as_short() -> None:
     ig.range(False, 50.0, short=True)
     ig.clear()
     assert ig.assess(5.0) == OK
+
+
+def test_integrity_after_a_range_that_placed_the_estimate_alone() -> None:
+    """A range whose update moved the estimate by most of its residual (after a gap) is
+    degraded until a range is accepted that the estimate could have refused; a refusal
+    in between checks nothing, and a fix clears it.  A mode that does not say how far a
+    range pulled it (NaN) is never held."""
+    ig = Integrity(window=10, degraded_std_m=25.0, lost_std_m=100.0)
+    for _ in range(10):
+        ig.range(True, 0.5, pull=0.5)
+    assert ig.assess(5.0) == OK
+    ig.range(True, 0.5, pull=0.95)
+    assert ig.assess(5.0) == DEGRADED and "placed" in ig.reason
+    ig.range(False, 50.0)  # refused as long: a reflection, or the true one; no news
+    assert ig.assess(5.0) == DEGRADED and "placed" in ig.reason
+    ig.range(True, 0.5, pull=0.9)  # placed again: still one range's word
+    assert ig.assess(5.0) == DEGRADED
+    ig.range(True, 0.5, pull=0.3)
+    assert ig.assess(5.0) == OK
+    ig.range(True, 0.5, pull=0.95)
+    ig.clear()
+    assert ig.assess(5.0) == OK
+    ig.range(True, 0.5, pull=math.nan)
+    assert ig.assess(5.0) == OK

@@ -234,6 +234,10 @@ class CalibrationBank:
     def last_nis(self) -> float:
         return self.followed.last_nis
 
+    @property
+    def last_pull(self) -> float:
+        return self.followed.last_pull
+
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None:
         self.config.initialise(lat, lon, std_m, t)
         self.uncal.initialise(lat, lon, std_m, t)

@@ -250,6 +250,11 @@ class NavFilter(Protocol):
     def last_nis(self) -> float:
         """Normalised innovation squared of the last range (NaN: the mode has no gate)."""
 
+    @property
+    def last_pull(self) -> float:
+        """The share of the last range's residual its update moved the estimate by along
+        the range's line of sight (NaN: the mode does not say)."""
+
     def initialise(self, lat: float, lon: float, std_m: float, t: float) -> None: ...
 
     def predict(self, t: float, dt: float, heading: float, speed: float, hd: float) -> None: ...

@@ -115,6 +115,10 @@ class RangeFusion(EkfCore):
         self._window: deque[tuple[RangeMeas, bool]] = deque(maxlen=_WINDOW_RANGES)
         self.last_nis = math.nan  # normalised innovation squared of the last range
         self.last_s = math.nan  # and its innovation variance (m^2)
+        # the share of the last range's residual its update moves the estimate by along
+        # its line of sight (the prior's variance there over the residual's): near 1, that
+        # range alone placed the estimate, and nothing yet says it was not a reflection
+        self.last_pull = math.nan
         # NIS of the last accepted ranges, and the 99 % bound of their sum (chi-square)
         self._nis: deque[float] = deque(maxlen=2 * reacquire_after)
         self._nis_limit = chi2_quantile(0.99, 2 * reacquire_after)
@@ -384,6 +388,7 @@ class RangeFusion(EkfCore):
         gate_m = math.sqrt(chi2 * S)
         self.last_s = S
         self.last_nis = residual * residual / S
+        self.last_pull = hph / S
         while self._window and m.t - self._window[0][0].t > WINDOW_S:
             self._window.popleft()
         if residual * residual > chi2 * S:

@@ -23,6 +23,13 @@ tests that do not need the truth:
   accepted.  One is enough: a filter that has taken a reflection for a true reply
   refuses the true ones after it as short, and while a run of them built up it was
   ``ok`` and far off (BENCHMARKS.md, "A range refused as short").
+* **A range nothing has checked.**  After a gap the estimate is uncertain along the line
+  of sight, the gate is wide, and the first reply accepted places the estimate almost
+  alone (its update moves it by more than ``UNCHECKED_PULL`` of its residual).  A
+  reflection a few tens of metres long passes that gate at full weight, and nothing can
+  tell it from a true reply until the next one: degraded until a range is accepted
+  that the estimate it placed could have refused (BENCHMARKS.md, "A reply after a gap,
+  unchecked (session 43)").
 
 ``lost`` means no range agrees with the estimate any more, or its own
 uncertainty is past the site's limit; an autopilot should surface for GPS.
@@ -36,6 +43,9 @@ from collections import deque
 OK, DEGRADED, LOST = "ok", "degraded", "lost"
 #: accepted ranges that confirm an estimate resumed from a checkpoint
 CONFIRM_RESUMED = 3
+#: the share of its residual beyond which an accepted range placed the estimate alone:
+#: the prior's variance along its line of sight four times the range's own
+UNCHECKED_PULL = 0.8
 
 
 def chi2_quantile(p: float, dof: int) -> float:
@@ -65,6 +75,7 @@ class Integrity:
         self.lost_refused = lost_refused
         self.refused_run = 0  # ranges or fixes refused in a row
         self.refused_short = False  # since the last accepted range, one refused as short
+        self.unchecked = False  # the last accepted range placed the estimate alone
         # resumed from a checkpoint: degraded until ranges (or a fix) confirm it
         self.unconfirmed: str = ""
         self._confirming = 0
@@ -81,6 +92,7 @@ class Integrity:
         self._ranges.clear()
         self.refused_run = 0
         self.refused_short = False
+        self.unchecked = False
         self.unconfirmed, self._confirming = "", 0
         self._summarise()
 
@@ -89,12 +101,17 @@ class Integrity:
         self.clear()
         self.unconfirmed = why
 
-    def range(self, accepted: bool, nis: float, short: bool = False) -> None:
-        """A range the filter accepted or refused, its NIS, and whether it read shorter
-        than predicted."""
+    def range(
+        self, accepted: bool, nis: float, short: bool = False, pull: float = math.nan
+    ) -> None:
+        """A range the filter accepted or refused, its NIS, whether it read shorter than
+        predicted, and the share of its residual the update moved the estimate by along its
+        line of sight (NaN: not known)."""
         self._ranges.append((accepted, nis))
         self.refused_run = 0 if accepted else self.refused_run + 1
         self.refused_short = not accepted and (short or self.refused_short)
+        if accepted:
+            self.unchecked = pull > UNCHECKED_PULL
         if accepted and self.unconfirmed:
             self._confirming += 1
             if self._confirming >= CONFIRM_RESUMED:
@@ -135,6 +152,9 @@ class Integrity:
             return DEGRADED
         if self.refused_short:
             self.reason = "a range refused as reading short"
+            return DEGRADED
+        if self.unchecked:
+            self.reason = "one range placed the estimate, and none has checked it yet"
             return DEGRADED
         if self.unconfirmed:
             self.reason = self.unconfirmed

@@ -95,7 +95,7 @@ class Ranging:
         d = flt.range_update(meas)
         # refused on its residual as reading short: not multipath, which only lengthens
         short = d.on_residual and d.residual_m < 0.0
-        integrity.range(d.accepted, flt.last_nis, short)
+        integrity.range(d.accepted, flt.last_nis, short, flt.last_pull)
         self.counters["ranges_accepted" if d.accepted else "ranges_rejected"] += 1
         if d.accepted:
             est = flt.estimate()

@@ -112,6 +112,7 @@ class ThesisEKF:
     ranges_as_reported = True  # the thesis ranges with the modem's own sound speed
     ranges_only_without_gps = True  # Algorithm 2 line 13
     last_nis = math.nan  # Algorithm 1 gates on the residual alone
+    last_pull = math.nan
 
     def __init__(
         self,

@@ -23,6 +23,7 @@ class VlblMode:
     ranges_as_reported = False
     ranges_only_without_gps = False
     last_nis = math.nan  # ranges act through the net's fixes, not a gate
+    last_pull = math.nan
 
     def __init__(self, drift_mps: float = 0.1) -> None:
         self.drift = drift_mps  # position uncertainty growth between fixes
