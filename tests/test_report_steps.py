@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 from navd.analysis.report import ReportInput, errors_against_truth, minutes_axis, summary
 from navd.formats.truth import TruthSample
@@ -37,6 +38,27 @@ def test_the_summary_counts_what_the_filter_did() -> None:
     assert lines[2] == "rejected by reason: gate 1, no_beacon_position 1"
     assert any(x.startswith("against the truth, submerged: RMS") for x in lines)
     assert lines[-1].startswith("final estimate: 37.0012000, -80.6000000")
+
+
+def test_the_summary_says_how_long_the_estimate_was_ok_and_why_not() -> None:
+    """Over the submerged estimates only, with a reason's numbers taken out so that one
+    reason with different figures counts once."""
+    states = [
+        ("ok", None), ("ok", None), ("ok", None), ("ok", None),
+        ("degraded", "position std 31 m over 25 m"), ("degraded", "position std 40 m over 25 m"),
+        ("degraded", "one range placed the estimate, and none has checked it yet"),
+        ("lost", "8 ranges or fixes refused in a row"),
+    ]  # fmt: skip
+    est = [_est(0.0, "surface"), _est(1.0, "surface")]
+    for k, (state, why) in enumerate(states):
+        est.append(replace(_est(10.0 + k), integrity=state, integrity_reason=why))
+    line = next(x for x in summary(ReportInput(est, [], [], [], "")) if "integrity" in x)
+    assert line == (
+        "integrity while submerged: ok 50%, degraded 38%, lost 12%; not ok for: "
+        "position std # m over # m 25%, "
+        "one range placed the estimate, and none has checked it yet 12%, "
+        "# ranges or fixes refused in a row 12%"
+    )
 
 
 def test_the_summary_says_when_the_calibration_priors_were_refuted() -> None:

@@ -8,6 +8,7 @@ are drawn on a local metric grid (east/north metres from the first estimate).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -221,6 +222,7 @@ def summary(r: ReportInput) -> list[str]:
         lines.append(
             f"error at surfacing: {surf[0]:.1f} m against the first GPS fix, {surf[1]:.0f} s later"
         )
+    lines += _integrity(r)
     lines += _calibration(r)
     lines += _consistency(r)
     lines += _observability(r)
@@ -338,6 +340,33 @@ def _consistency(r: ReportInput) -> list[str]:
             "(range_std_m, the priors) and the sound speed"
         )
     return [line]
+
+
+def _integrity(r: ReportInput, most: int = 3) -> list[str]:
+    """How much of the submerged time an autopilot was told it could trust the estimate,
+    and the commonest reasons it was not (their numbers taken out, so that "position std
+    31 m over 25 m" and "... 40 m ..." count as one reason)."""
+    sub = [e for e in r.estimates if e.mode == "submerged"]
+    if not sub:
+        return []
+    states = {s: sum(1 for e in sub if e.integrity == s) for s in ("ok", "degraded", "lost")}
+    line = "integrity while submerged: " + ", ".join(
+        f"{s} {_share(n, len(sub))}" for s, n in states.items()
+    )
+    why: dict[str, int] = {}
+    for e in sub:
+        if e.integrity != "ok" and e.integrity_reason:
+            kind = re.sub(r"\d+(\.\d+)?", "#", e.integrity_reason)
+            why[kind] = why.get(kind, 0) + 1
+    if why:
+        top = sorted(why.items(), key=lambda kv: -kv[1])[:most]
+        line += "; not ok for: " + ", ".join(f"{k} {_share(n, len(sub))}" for k, n in top)
+    return [line]
+
+
+def _share(n: int, of: int) -> str:
+    """``n`` of ``of`` as a percentage, a little not rounded to nothing."""
+    return "<1%" if 0 < n < 0.005 * of else f"{n / of:.0%}"
 
 
 def _observability(r: ReportInput) -> list[str]:
