@@ -68,6 +68,30 @@ def _submerged(
     return out
 
 
+def _surfaced_at_fixed_sound_speed() -> Navigator:
+    """A navigator whose ranges are taken at 1500 m/s, after 20 s of fixes at the start."""
+    nav = Navigator(
+        config_from_dict(
+            {
+                "navigation": {
+                    "speed": {"rpm_per_mps": 1000.0},
+                    "sound_speed": {"model": "fixed", "fixed_mps": 1500.0},
+                }
+            }
+        )
+    )
+    _surface(nav, 0.0, 20.0)
+    return nav
+
+
+def _true_range_m() -> float:
+    """From the start, 5 m down, to ``BEACON``."""
+    return geodesy.ecef_distance(
+        math.radians(LAT0), math.radians(LON0), -5.0,
+        math.radians(BEACON[0]), math.radians(BEACON[1]), -BEACON[2],
+    )  # fmt: skip
+
+
 def _error_m(e: dict, lat: float = LAT0, lon: float = LON0) -> float:
     de, dn, _ = geodesy.enu_offset(
         math.radians(lat),
@@ -142,21 +166,8 @@ def test_a_range_refused_as_short_is_degraded_and_one_refused_as_long_is_not() -
     """Multipath only lengthens a reply: one refused as 60 m long is an outlier and the
     estimate stays ``ok``; one refused as 60 m short says the estimate is off, and it is
     ``degraded`` until a range is accepted again."""
-    nav = Navigator(
-        config_from_dict(
-            {
-                "navigation": {
-                    "speed": {"rpm_per_mps": 1000.0},
-                    "sound_speed": {"model": "fixed", "fixed_mps": 1500.0},
-                }
-            }
-        )
-    )
-    _surface(nav, 0.0, 20.0)
-    true_m = geodesy.ecef_distance(
-        math.radians(LAT0), math.radians(LON0), -5.0,
-        math.radians(BEACON[0]), math.radians(BEACON[1]), -BEACON[2],
-    )  # fmt: skip
+    nav = _surfaced_at_fixed_sound_speed()
+    true_m = _true_range_m()
     extra = {60: 60.0, 80: -60.0}
     out = _submerged(nav, 20.0, 110.0, lambda t: true_m + extra.get(round(t), 0.0))
     decided = {round(o["t"]): o for o in rows(out) if o["type"] == "range"}
@@ -177,22 +188,9 @@ def test_a_reply_after_a_gap_is_degraded_until_another_checks_it() -> None:
     passes that gate; the estimate it placed is ``degraded`` (not ``ok``) until a next
     reply is accepted, and when the next true reply is then refused as short it stays
     so.  A reply that was true is checked by the next, and ``ok`` returns."""
-    true_m = geodesy.ecef_distance(
-        math.radians(LAT0), math.radians(LON0), -5.0,
-        math.radians(BEACON[0]), math.radians(BEACON[1]), -BEACON[2],
-    )  # fmt: skip
+    true_m = _true_range_m()
     for long_m, checked in ((20.0, False), (8.0, True)):
-        nav = Navigator(
-            config_from_dict(
-                {
-                    "navigation": {
-                        "speed": {"rpm_per_mps": 1000.0},
-                        "sound_speed": {"model": "fixed", "fixed_mps": 1500.0},
-                    }
-                }
-            )
-        )
-        _surface(nav, 0.0, 20.0)
+        nav = _surfaced_at_fixed_sound_speed()
 
         def reply(t: float, long_m: float = long_m) -> float | None:
             if 40.0 < t < 160.0:
